@@ -1,0 +1,78 @@
+"""Units at the boundaries.
+
+Inside the package everything is SI. Wherever a number enters from a file, a CSV header, a CLI
+flag or a plugin config key, its unit is part of its name (``pressure_kPa``, ``length_m``); this
+module turns such a suffixed name into a factor to SI, and refuses a name whose unit it does not
+know instead of guessing.
+"""
+
+from __future__ import annotations
+
+import math
+
+# factor that converts a value in the suffix unit into the SI unit of its quantity
+PRESSURE = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "psi": 6894.757293168361}
+LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "in": 0.0254}
+FORCE = {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605}
+TIME = {"s": 1.0, "ms": 1e-3, "min": 60.0}
+ANGLE = {"rad": 1.0, "deg": math.pi / 180.0}
+VOLUME = {"m3": 1.0, "L": 1e-3, "cm3": 1e-6, "mL": 1e-6}
+
+QUANTITIES = {
+    "pressure": PRESSURE,
+    "length": LENGTH,
+    "force": FORCE,
+    "time": TIME,
+    "angle": ANGLE,
+    "volume": VOLUME,
+}
+
+
+class UnitError(ValueError):
+    """A boundary value came without a unit, or with one this package does not know."""
+
+
+def split_unit(name: str) -> tuple[str, str | None]:
+    """``'pressure_kPa'`` -> ``('pressure', 'kPa')``; a name without an underscore has no unit."""
+    base, sep, unit = name.rpartition("_")
+    if not sep or not base:
+        return name, None
+    return base, unit
+
+
+def factor(unit: str, quantity: str, where: str = "") -> float:
+    """Factor from ``unit`` to SI for ``quantity``; a clear error when the unit is unknown."""
+    table = QUANTITIES[quantity]
+    if unit not in table:
+        known = ", ".join(sorted(table))
+        place = f"{where}: " if where else ""
+        raise UnitError(f"{place}unknown {quantity} unit '{unit}' (known: {known})")
+    return table[unit]
+
+
+REQUIRED = object()
+
+
+def read_quantity(mapping: dict, base: str, quantity: str, where: str, default=REQUIRED):
+    """Read ``base_<unit>`` from a dict of boundary values and return it in SI.
+
+    Exactly one unit variant may be present. ``default`` (already SI, may be None) is returned
+    when none is; without a default a missing key is an error naming the key and an example unit.
+    """
+    table = QUANTITIES[quantity]
+    found = [(k, u) for k in mapping for b, u in [split_unit(k)] if b == base and u is not None]
+    if base in mapping:
+        example = next(iter(table))
+        raise UnitError(f"{where}: key '{base}' has no unit; write e.g. '{base}_{example}'")
+    if len(found) > 1:
+        raise UnitError(f"{where}: {base} given twice ({', '.join(k for k, _ in found)})")
+    if not found:
+        if default is not REQUIRED:
+            return default
+        example = "kPa" if quantity == "pressure" else next(iter(table))
+        raise UnitError(f"{where}: missing key '{base}_<unit>' (e.g. '{base}_{example}')")
+    key, unit = found[0]
+    value = mapping[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise UnitError(f"{where}: key '{key}' must be a finite number, got {value!r}")
+    return float(value) * factor(unit, quantity, f"{where}: key '{key}'")
