@@ -242,7 +242,9 @@ class Muscle:
     # --------------------------------------------------------------------------- forces
     def tension(self, pressure_Pa, length_m):
         """Eq. 2: axial force in N, positive when the muscle pulls. Broadcasts its inputs."""
-        P_in, L_in = np.broadcast_arrays(np.asarray(pressure_Pa, dtype=float), np.asarray(length_m, dtype=float))
+        P_in, L_in = np.broadcast_arrays(
+            np.asarray(pressure_Pa, dtype=float), np.asarray(length_m, dtype=float)
+        )
         finite = np.isfinite(P_in) & np.isfinite(L_in)
         P = np.where(finite, np.maximum(P_in, 0.0), 0.0)
         L_raw = np.where(finite, L_in, self.rest_length_m)

@@ -96,9 +96,7 @@ _E1_SEARCH = (1e4, 5e7)
 _E2_SEARCH = (0.0, 20.0)
 
 LAWS: dict[str, LawSpec] = {
-    "linear": LawSpec(
-        "linear", ("E1_Pa", "E2"), (_E1, _E2), (_E1_SEARCH, _E2_SEARCH), "(E1 + E2 P) eps"
-    ),
+    "linear": LawSpec("linear", ("E1_Pa", "E2"), (_E1, _E2), (_E1_SEARCH, _E2_SEARCH), "(E1 + E2 P) eps"),
     "polynomial": LawSpec(
         "polynomial",
         ("E1_Pa", "E2", "E3_Pa", "E4_Pa"),

@@ -1,0 +1,81 @@
+"""Muscle files: presets load, round trips keep the physics, bad files say what is wrong."""
+
+import json
+
+import pytest
+
+from efam_mujoco import MuscleFileError, load_muscle, save_muscle
+from efam_mujoco.musclefile import available_laws
+
+
+def test_presets_carry_all_four_table4_laws():
+    for name in ("FAM1", "fam2"):
+        assert set(available_laws(name)) == {"linear", "polynomial", "exponential_decay", "exponent"}
+
+
+def test_round_trip_keeps_forces(tmp_path):
+    muscle = load_muscle("fam2", "exponent")
+    path = save_muscle(tmp_path / "m.json", muscle)
+    again = load_muscle(path)
+    assert again.stress == muscle.stress
+    assert again.tension(3e5, 0.25) == pytest.approx(muscle.tension(3e5, 0.25), rel=1e-14)
+
+
+def _write(tmp_path, doc):
+    path = tmp_path / "muscle.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _base():
+    return {
+        "format": "efam_mujoco.muscle/1",
+        "constants": {
+            "rest_length_m": 0.17,
+            "rest_diameter_cm": 2.87,
+            "theta_rest_deg": 12.5,
+            "bladder_volume_L": 0.017,
+        },
+        "deadband_kPa": 33.6,
+        "stress": {"default": "linear", "laws": {"linear": {"E1_Pa": 1.7e6, "E2": 1.5}}},
+    }
+
+
+def test_units_in_keys_are_converted(tmp_path):
+    muscle = load_muscle(_write(tmp_path, _base()))
+    assert muscle.rest_diameter_m == pytest.approx(0.0287)
+    assert muscle.bladder_volume_m3 == pytest.approx(1.7e-5)
+    assert muscle.deadband_Pa == pytest.approx(33.6e3)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda d: d["constants"].pop("rest_length_m"), "rest_length"),
+        (lambda d: d.pop("deadband_kPa"), "deadband_<unit>"),
+        (lambda d: d.update(deadband=30), "'deadband' has no unit"),
+        (
+            lambda d: d["constants"].update(rest_length_furlong=d["constants"].pop("rest_length_m")),
+            "unknown length unit",
+        ),
+        (lambda d: d["constants"].update(rest_length_m=-0.17), "rest_length_m"),
+        (lambda d: d["stress"].update(default="ogden"), "no coefficients for stress law 'ogden'"),
+        (lambda d: d["stress"]["laws"]["linear"].pop("E2"), "missing coefficient key 'E2'"),
+        (lambda d: d.update(format="other"), "'format'"),
+        (lambda d: d["constants"].update(theta_rest_deg="twelve"), "theta_rest_deg"),
+    ],
+)
+def test_bad_files_name_the_problem(tmp_path, edit, message):
+    doc = _base()
+    edit(doc)
+    with pytest.raises(MuscleFileError, match=message):
+        load_muscle(_write(tmp_path, doc))
+
+
+def test_not_json_and_missing_file(tmp_path):
+    path = tmp_path / "broken.json"
+    path.write_text("{not json")
+    with pytest.raises(MuscleFileError, match="not valid JSON"):
+        load_muscle(path)
+    with pytest.raises(MuscleFileError, match="neither a preset"):
+        load_muscle(tmp_path / "absent.json")
