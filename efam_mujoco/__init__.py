@@ -4,7 +4,7 @@ The physics (``muscle``, ``stress``) is plain numpy; ``import efam_mujoco`` also
 compiled actuator plugin into MuJoCo so that models using ``efam.muscle`` compile.
 """
 
-from .muscle import Geometry, Muscle, MuscleError, NEUTRAL_BRAID_ANGLE_DEG
+from .muscle import NEUTRAL_BRAID_ANGLE_DEG, Geometry, Muscle, MuscleError
 from .musclefile import MuscleFileError, load_muscle, save_muscle
 from .stress import LAW_NAMES, StressLaw, StressLawError
 
