@@ -6,6 +6,7 @@ compiled actuator plugin into MuJoCo so that models using ``efam.muscle`` compil
 
 from .muscle import NEUTRAL_BRAID_ANGLE_DEG, Geometry, Muscle, MuscleError
 from .musclefile import MuscleFileError, load_muscle, save_muscle
+from .plugin import _autoload  # noqa: F401  (registers the efam.muscle plugin with MuJoCo)
 from .stress import LAW_NAMES, StressLaw, StressLawError
 
 __all__ = [

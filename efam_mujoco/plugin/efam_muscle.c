@@ -1,0 +1,650 @@
+// efam.muscle: the force-balance model of a fluidic artificial muscle (Garbulinski et al. 2021,
+// Eq. 2) as a MuJoCo actuator plugin.
+//
+// The Python model (efam_mujoco/muscle.py, stress.py) is the reference. Every expression below
+// is evaluated in the same order as there, with the same constants, so the two agree to the last
+// few bits: that is what lets a test hold them to 1e-9. Where Python squares a float with `**2`
+// we call libm pow() too (not x*x), and the admissible length range is found with the same
+// Brent iteration scipy.optimize.brentq performs, because at the ends of that range the force
+// depends on the last bit of the bound.
+//
+// Sign: actuator_force = -tension (positive = the muscle pushes its ends apart).
+// Control: gauge pressure in Pa: ctrl (dyntype none) or the actuator's activation (a filtered
+// pressure, e.g. dyntype="filterexact" dynprm="tau" actdim="1").
+// Length: actuator_length (tendon or joint length, m).
+
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <mujoco/mujoco.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+#if defined(_WIN32)
+#define EFAM_EXPORT __declspec(dllexport)
+#else
+#define EFAM_EXPORT __attribute__((visibility("default")))
+#endif
+
+#define PLUGIN_NAME "efam.muscle"
+#define DEFAULT_LOCK_STIFFNESS 2.0e4
+#define STRAIN_SAMPLES 2001  // Muscle.strain_range samples the admissible lengths this densely
+#define BRENT_XTOL 1e-15     // the tolerances muscle._admissible_lengths gives brentq
+#define BRENT_RTOL 1e-15
+#define BRENT_MAXITER 100
+
+// ------------------------------------------------------------------------------ stress laws
+
+typedef enum { LAW_LINEAR, LAW_POLYNOMIAL, LAW_EXP_DECAY, LAW_EXPONENT, LAW_SIGMOID, LAW_ARCCOT, NLAW } Law;
+
+typedef struct {
+  double lo, hi;
+  int lo_open, hi_open;
+} Bound;
+
+typedef struct {
+  const char* name;
+  int ncoef;
+  const char* keys[4];
+  Bound bounds[4];
+} LawSpec;
+
+// Hard bounds exactly as stress.LAWS (paper Table 5).
+#define E1_BOUND {0.0, INFINITY, 1, 0}
+#define E2_BOUND {0.0, INFINITY, 0, 0}
+#define FREE_BOUND {-INFINITY, INFINITY, 0, 0}
+#define NONNEG_BOUND {0.0, INFINITY, 0, 0}
+#define POSITIVE_BOUND {0.0, INFINITY, 1, 0}
+
+static const LawSpec kLaws[NLAW] = {
+    {"linear", 2, {"E1_Pa", "E2"}, {E1_BOUND, E2_BOUND}},
+    {"polynomial", 4, {"E1_Pa", "E2", "E3_Pa", "E4_Pa"}, {E1_BOUND, E2_BOUND, FREE_BOUND, FREE_BOUND}},
+    {"exponential_decay",
+     4,
+     {"E1_Pa", "E2", "E3_Pa", "E4"},
+     {E1_BOUND, E2_BOUND, NONNEG_BOUND, POSITIVE_BOUND}},
+    {"exponent", 4, {"E1_Pa", "E2", "E3", "E4"}, {E1_BOUND, E2_BOUND, {0.0, 1.0, 1, 1}, {1.0, INFINITY, 1, 0}}},
+    {"sigmoid", 4, {"E1_Pa", "E2", "E3_Pa", "E4"}, {E1_BOUND, E2_BOUND, NONNEG_BOUND, POSITIVE_BOUND}},
+    {"arccot", 4, {"E1_Pa", "E2", "E3_Pa", "E4"}, {E1_BOUND, E2_BOUND, NONNEG_BOUND, POSITIVE_BOUND}},
+};
+
+// Every config key the plugin accepts (MuJoCo rejects any other key at compile time).
+static const char* const kAttributes[] = {
+    "rest_length_m", "rest_diameter_m", "theta_rest_deg", "bladder_volume_m3", "deadband_Pa",
+    "law",           "tension_only",    "lock_stiffness_N_per_m",
+    "E1_Pa",         "E2",              "E3_Pa",          "E3",          "E4_Pa", "E4",
+};
+#define NATTRIBUTE ((int)(sizeof(kAttributes) / sizeof(kAttributes[0])))
+#define FIRST_COEF_ATTRIBUTE 8
+
+// ------------------------------------------------------------------------------ the muscle
+
+typedef struct {
+  // config
+  double rest_length, rest_diameter, theta_rest_deg, bladder_volume, deadband, lock_stiffness;
+  Law law;
+  double coef[4];  // E1..E4, unused ones zero (stress._pad)
+  int tension_only;
+
+  // derived exactly as Muscle.__post_init__
+  double turns, thread, min_length, max_length, rest_outer_radius, rest_wall;
+
+  // constants of the force expression, precomputed in the order Python evaluates them
+  double thread_sq_pow;   // thread**2 (libm pow, as Python)
+  double thread_sq_mul;   // B * B
+  double two_pi_turns;    // 2 * pi * N
+  double pressure_denom;  // 4 * pi * N * N
+  double rest_mid_radius; // rest_outer_radius - rest_wall / 2
+  double arccot_scale;    // E3 * (2 / pi)
+
+  // the actuators this instance drives
+  int nactuator;
+  int actuator[];
+} Muscle;
+
+// pow through a volatile pointer: the compiler must not turn pow(x, 2.0) into x*x, which can
+// differ from libm's pow in the last bit, and Python's float ** 2 calls libm's pow.
+static double libm_pow(double x, double y) {
+  double (*volatile fn)(double, double) = pow;
+  return fn(x, y);
+}
+
+static double max0(double x) { return x > 0.0 ? x : 0.0; }  // np.maximum(x, 0.0) for finite x
+
+static double clip(double x, double lo, double hi) {  // np.clip: minimum(maximum(x, lo), hi)
+  double y = x > lo ? x : lo;
+  return y < hi ? y : hi;
+}
+
+static double sign(double x) { return (x > 0.0) - (x < 0.0); }
+
+static double signed_power(double e, double p) { return sign(e) * pow(fabs(e), p); }
+
+// stress.StressLaw.__call__: (E1 + E2 P) eps + the law's non-linear term.
+static double stress(const Muscle* mu, double e, double P) {
+  const double* c = mu->coef;
+  double linear = (c[0] + c[1] * P) * e;
+  switch (mu->law) {
+    case LAW_POLYNOMIAL:
+      return linear + (c[2] * (e * e) + c[3] * pow(e, 3.0));
+    case LAW_EXP_DECAY:
+      return linear + c[2] * (1.0 - exp(-c[3] * e));
+    case LAW_EXPONENT:
+      return linear + c[0] * (signed_power(e, c[2]) + signed_power(e, c[3]));
+    case LAW_SIGMOID:
+      return linear + c[2] * tanh(c[3] * e);
+    case LAW_ARCCOT:
+      return linear + mu->arccot_scale * atan(c[3] * e);
+    default:
+      return linear;
+  }
+}
+
+// Eq. 10: R_o(L) = sqrt(B^2 - L^2) / (2 pi N).
+static double outer_radius(const Muscle* mu, double L) {
+  return sqrt(max0(mu->thread_sq_pow - L * L)) / mu->two_pi_turns;
+}
+
+// Eq. 11: t_B = R_o - sqrt(R_o^2 - V_B / (pi L)).
+static double wall(double volume, double L, double r_out) {
+  double inner_sq = max0(r_out * r_out - volume / (M_PI * L));
+  return r_out - sqrt(inner_sq);
+}
+
+// Muscle.tension: Eq. 2 with the documented out-of-range behaviour (paper sign: pull > 0).
+static double muscle_tension(const Muscle* mu, double pressure, double length) {
+  if (!isfinite(pressure) || !isfinite(length)) {
+    return 0.0;
+  }
+  double P = max0(pressure);
+  double L = clip(length, mu->min_length, mu->max_length);
+  double N = mu->turns, V = mu->bladder_volume;
+
+  double r_out = outer_radius(mu, L);
+  double t = wall(V, L, r_out);
+  double eps_z = L / mu->rest_length - 1.0;
+  double eps_c = (r_out - t / 2) / mu->rest_mid_radius - 1.0;
+  double sigma_z = stress(mu, eps_z, P);
+  double sigma_c = stress(mu, eps_c, P);
+  double gauge = max0(P - mu->deadband);
+  double force = gauge / mu->pressure_denom * (3 * L * L - mu->thread_sq_mul) + sigma_z * V / L -
+                 sigma_c * t * L * L / (2 * M_PI * r_out * N * N);
+  force = force + mu->lock_stiffness * (length - L);
+  if (mu->tension_only) {
+    force = max0(force);
+  }
+  // an overflowing law (e.g. exp of a huge argument) must not hand MuJoCo inf or NaN
+  return isfinite(force) ? force : 0.0;
+}
+
+// ------------------------------------------------------------------- admissible lengths
+
+typedef struct {
+  double thread_sq, c;
+} FillCubic;
+
+// L (B^2 - L^2) - 4 pi N^2 V: positive where the bladder fits inside the sleeve.
+static double fill_margin(const FillCubic* g, double L) { return L * (g->thread_sq - L * L) - g->c; }
+
+// Brent's root bracketing method (Brent 1973, ch. 4) in the variant scipy.optimize.brentq
+// implements, step for step, so that the root lands on the same double as in the Python model.
+static double brent_root(const FillCubic* g, double a, double b, double xtol, double rtol) {
+  double x_prev = a, f_prev = fill_margin(g, a);
+  double x_cur = b, f_cur = fill_margin(g, b);
+  double x_blk = 0.0, f_blk = 0.0, step_prev = 0.0, step_cur = 0.0;
+  if (f_prev == 0.0) {
+    return x_prev;
+  }
+  if (f_cur == 0.0) {
+    return x_cur;
+  }
+  for (int iter = 0; iter < BRENT_MAXITER; iter++) {
+    if (f_prev * f_cur < 0) {  // keep the bracket: x_blk is on the other side of the root
+      x_blk = x_prev;
+      f_blk = f_prev;
+      step_prev = step_cur = x_cur - x_prev;
+    }
+    if (fabs(f_blk) < fabs(f_cur)) {  // make x_cur the best estimate
+      x_prev = x_cur, x_cur = x_blk, x_blk = x_prev;
+      f_prev = f_cur, f_cur = f_blk, f_blk = f_prev;
+    }
+    double tol = (xtol + rtol * fabs(x_cur)) / 2;
+    double half = (x_blk - x_cur) / 2;
+    if (f_cur == 0 || fabs(half) < tol) {
+      return x_cur;
+    }
+    int bisect = 1;
+    if (fabs(step_prev) > tol && fabs(f_cur) < fabs(f_prev)) {
+      double trial;
+      if (x_prev == x_blk) {  // secant
+        trial = -f_cur * (x_cur - x_prev) / (f_cur - f_prev);
+      } else {  // inverse quadratic
+        double slope_prev = (f_prev - f_cur) / (x_prev - x_cur);
+        double slope_blk = (f_blk - f_cur) / (x_blk - x_cur);
+        trial = -f_cur * (f_blk * slope_blk - f_prev * slope_prev) / (slope_blk * slope_prev * (f_blk - f_prev));
+      }
+      double limit = fabs(step_prev) < 3 * fabs(half) - tol ? fabs(step_prev) : 3 * fabs(half) - tol;
+      if (2 * fabs(trial) < limit) {
+        step_prev = step_cur;
+        step_cur = trial;
+        bisect = 0;
+      }
+    }
+    if (bisect) {
+      step_prev = step_cur = half;
+    }
+    x_prev = x_cur;
+    f_prev = f_cur;
+    x_cur += fabs(step_cur) > tol ? step_cur : (half > 0 ? tol : -tol);
+    f_cur = fill_margin(g, x_cur);
+  }
+  return x_cur;
+}
+
+// ---------------------------------------------------------------------------- config errors
+
+// The actuator name (or number) an instance drives, for messages.
+static const char* instance_label(const mjModel* m, int instance, char* buf, size_t size) {
+  for (int i = 0; i < m->nactuator; i++) {
+    if (m->actuator_plugin[i] == instance) {
+      const char* name = m->names + m->name_actuatoradr[i];
+      if (name[0]) {
+        snprintf(buf, size, "actuator '%s'", name);
+      } else {
+        snprintf(buf, size, "actuator %d", i);
+      }
+      return buf;
+    }
+  }
+  snprintf(buf, size, "plugin instance %d", instance);
+  return buf;
+}
+
+#define CONFIG_ERROR(m, instance, fmt, ...)                                                    \
+  do {                                                                                         \
+    char label_[160];                                                                          \
+    mju_error(PLUGIN_NAME " (%s): " fmt, instance_label(m, instance, label_, sizeof(label_)), \
+              __VA_ARGS__);                                                                    \
+  } while (0)
+
+static const char* config_value(const mjModel* m, int instance, const char* key) {
+  const char* value = mj_getPluginConfig(m, instance, key);
+  return value && value[0] ? value : NULL;
+}
+
+// A finite number, or an error naming the key. Missing optional keys give the default.
+static double read_number(const mjModel* m, int instance, const char* key, int required, double fallback) {
+  const char* text = config_value(m, instance, key);
+  if (!text) {
+    if (required) {
+      CONFIG_ERROR(m, instance, "missing config key '%s'", key);
+    }
+    return fallback;
+  }
+  char* end = NULL;
+  errno = 0;
+  double value = strtod(text, &end);
+  while (end && (*end == ' ' || *end == '\t' || *end == '\n')) {
+    end++;
+  }
+  if (end == text || (end && *end) || !isfinite(value)) {
+    CONFIG_ERROR(m, instance, "config key '%s' must be a finite number, got '%s'", key, text);
+  }
+  return value;
+}
+
+static void require(const mjModel* m, int instance, int ok, const char* key, double value, const char* rule) {
+  if (!ok) {
+    CONFIG_ERROR(m, instance, "config key '%s' = %.10g is invalid: %s", key, value, rule);
+  }
+}
+
+static Law read_law(const mjModel* m, int instance) {
+  const char* text = config_value(m, instance, "law");
+  if (!text) {
+    CONFIG_ERROR(m, instance, "missing config key '%s' (one of: %s)", "law",
+                 "linear, polynomial, exponential_decay, exponent, sigmoid, arccot");
+  }
+  for (int k = 0; k < NLAW; k++) {
+    if (strcmp(text, kLaws[k].name) == 0) {
+      return (Law)k;
+    }
+  }
+  CONFIG_ERROR(m, instance, "config key 'law' = '%s' is not a known stress law (known: %s)", text,
+               "linear, polynomial, exponential_decay, exponent, sigmoid, arccot");
+  return LAW_LINEAR;
+}
+
+static int read_flag(const mjModel* m, int instance, const char* key) {
+  const char* text = config_value(m, instance, key);
+  if (!text || strcmp(text, "0") == 0 || strcmp(text, "false") == 0) {
+    return 0;
+  }
+  if (strcmp(text, "1") == 0 || strcmp(text, "true") == 0) {
+    return 1;
+  }
+  CONFIG_ERROR(m, instance, "config key '%s' must be \"0\" or \"1\", got '%s'", key, text);
+  return 0;
+}
+
+static int law_has_key(const LawSpec* law, const char* key) {
+  for (int k = 0; k < law->ncoef; k++) {
+    if (strcmp(law->keys[k], key) == 0) {
+      return 1;
+    }
+  }
+  return 0;
+}
+
+static void read_coefficients(const mjModel* m, int instance, Muscle* mu) {
+  const LawSpec* law = &kLaws[mu->law];
+  char expected[64] = "";
+  for (int k = 0; k < law->ncoef; k++) {
+    strcat(expected, k ? ", " : "");
+    strcat(expected, law->keys[k]);
+  }
+  // a coefficient of another law is a mistake (E3 given where E3_Pa is meant, say)
+  for (int a = FIRST_COEF_ATTRIBUTE; a < NATTRIBUTE; a++) {
+    if (config_value(m, instance, kAttributes[a]) && !law_has_key(law, kAttributes[a])) {
+      CONFIG_ERROR(m, instance, "config key '%s' is not a coefficient of stress law '%s' (expected %s)",
+                   kAttributes[a], law->name, expected);
+    }
+  }
+  for (int k = 0; k < 4; k++) {
+    mu->coef[k] = 0.0;
+  }
+  for (int k = 0; k < law->ncoef; k++) {
+    const char* key = law->keys[k];
+    if (!config_value(m, instance, key)) {
+      CONFIG_ERROR(m, instance, "missing config key '%s' for stress law '%s' (expected %s)", key, law->name,
+                   expected);
+    }
+    double value = read_number(m, instance, key, 1, 0.0);
+    Bound b = law->bounds[k];
+    int too_low = b.lo_open ? value <= b.lo : value < b.lo;
+    int too_high = b.hi_open ? value >= b.hi : value > b.hi;
+    if (too_low || too_high) {
+      CONFIG_ERROR(m, instance, "config key '%s' = %.10g is outside %s%g, %g%s for stress law '%s'", key, value,
+                   b.lo_open ? "(" : "[", b.lo, b.hi, b.hi_open ? ")" : "]", law->name);
+    }
+    mu->coef[k] = value;
+  }
+}
+
+// Muscle.strains at one length: the longitudinal and circumferential strains.
+static void strains(const Muscle* mu, double L, double* eps_z, double* eps_c) {
+  double r_out = outer_radius(mu, L);
+  double t = wall(mu->bladder_volume, L, r_out);
+  *eps_z = L / mu->rest_length - 1.0;
+  *eps_c = (r_out - t / 2) / mu->rest_mid_radius - 1.0;
+}
+
+// Drucker stability over the muscle's strain range (StressLaw.check_stable with
+// Muscle.strain_range): d sigma / d eps > 0 at zero pressure.
+static void check_stable(const mjModel* m, int instance, const Muscle* mu) {
+  double lo = INFINITY, hi = -INFINITY;
+  double step = (mu->max_length - mu->min_length) / (STRAIN_SAMPLES - 1);
+  for (int i = 0; i < STRAIN_SAMPLES; i++) {
+    double L = i == STRAIN_SAMPLES - 1 ? mu->max_length : i * step + mu->min_length;
+    double ez, ec;
+    strains(mu, L, &ez, &ec);
+    lo = fmin(lo, fmin(ez, ec));
+    hi = fmax(hi, fmax(ez, ec));
+  }
+  const double* c = mu->coef;
+  double worst = c[0];
+  if (mu->law == LAW_POLYNOMIAL) {
+    double candidates[3] = {lo, hi, lo};
+    int n = 2;
+    if (c[3] != 0.0) {
+      double vertex = -c[2] / (3.0 * c[3]);
+      if (lo < vertex && vertex < hi) {
+        candidates[n++] = vertex;
+      }
+    }
+    worst = INFINITY;
+    for (int k = 0; k < n; k++) {
+      double e = candidates[k];
+      worst = fmin(worst, c[0] + 2.0 * c[2] * e + 3.0 * c[3] * e * e);
+    }
+  }
+  if (!(worst > 0.0)) {
+    CONFIG_ERROR(m, instance,
+                 "stress law '%s' is not Drucker-stable: d sigma/d eps = %.4g Pa <= 0 for strains in "
+                 "[%.3g, %.3g]; check config keys E1_Pa, E3_Pa, E4_Pa",
+                 kLaws[mu->law].name, worst, lo, hi);
+  }
+}
+
+// Muscle.__post_init__ and _admissible_lengths: the derived constants.
+static void derive(const mjModel* m, int instance, Muscle* mu) {
+  double theta = mu->theta_rest_deg * (M_PI / 180.0);  // math.radians
+  mu->turns = mu->rest_length / (M_PI * mu->rest_diameter * tan(theta));  // Eq. 4
+  mu->thread = mu->rest_length / sin(theta);                              // Eq. 3
+  mu->rest_outer_radius = mu->rest_diameter / 2;
+
+  FillCubic g = {libm_pow(mu->thread, 2), 4 * M_PI * libm_pow(mu->turns, 2) * mu->bladder_volume};
+  double peak = mu->thread / sqrt(3.0);
+  if (peak * (libm_pow(mu->thread, 2) - libm_pow(peak, 2)) <= g.c) {
+    CONFIG_ERROR(m, instance,
+                 "config key 'bladder_volume_m3' = %.6g: the bladder does not fit inside the sleeve at any "
+                 "length (check rest_length_m, rest_diameter_m, theta_rest_deg)",
+                 mu->bladder_volume);
+  }
+  mu->min_length = brent_root(&g, 0.0, peak, BRENT_XTOL, BRENT_RTOL);
+  mu->max_length = brent_root(&g, peak, mu->thread, BRENT_XTOL, BRENT_RTOL);
+  if (!(mu->min_length < mu->rest_length && mu->rest_length < mu->max_length)) {
+    CONFIG_ERROR(m, instance,
+                 "config key 'bladder_volume_m3' = %.6g: the bladder does not fit inside the sleeve at the "
+                 "resting length rest_length_m = %.6g",
+                 mu->bladder_volume, mu->rest_length);
+  }
+  mu->rest_wall = wall(mu->bladder_volume, mu->rest_length, mu->rest_outer_radius);
+
+  mu->thread_sq_pow = libm_pow(mu->thread, 2);
+  mu->thread_sq_mul = mu->thread * mu->thread;
+  mu->two_pi_turns = 2 * M_PI * mu->turns;
+  mu->pressure_denom = 4 * M_PI * mu->turns * mu->turns;
+  mu->rest_mid_radius = mu->rest_outer_radius - mu->rest_wall / 2;
+  mu->arccot_scale = mu->coef[2] * (2.0 / M_PI);
+}
+
+static int actuator_count(const mjModel* m, int instance) {
+  int n = 0;
+  for (int i = 0; i < m->nactuator; i++) {
+    n += m->actuator_plugin[i] == instance;
+  }
+  return n;
+}
+
+// One pressure per actuator: a scalar control, and at most the one activation state MuJoCo's
+// own first-order dynamics keeps.
+static void check_actuators(const mjModel* m, int instance) {
+  for (int i = 0; i < m->nactuator; i++) {
+    if (m->actuator_plugin[i] != instance) {
+      continue;
+    }
+    int dyntype = m->actuator_dyntype[i];
+    if (dyntype != mjDYN_NONE && dyntype != mjDYN_INTEGRATOR && dyntype != mjDYN_FILTER &&
+        dyntype != mjDYN_FILTEREXACT) {
+      CONFIG_ERROR(m, instance, "dyntype %d is not supported (use none, filter, filterexact or integrator)%s",
+                   dyntype, "");
+    }
+    int expected = dyntype == mjDYN_NONE ? 0 : 1;
+    if (m->actuator_actnum[i] != expected) {
+      CONFIG_ERROR(m, instance, "actdim is %d, expected %d for this dyntype: set actdim=\"%d\" on the plugin actuator",
+                   m->actuator_actnum[i], expected, expected);
+    }
+    if (m->actuator_ctrlnum[i] != 1 || m->actuator_outnum[i] != 1) {
+      CONFIG_ERROR(m, instance, "needs a scalar transmission (one control, one force output)%s", "");
+    }
+  }
+}
+
+// Read, validate and derive everything before allocating, so that an error (which does not
+// return) leaks nothing.
+static Muscle* muscle_create(const mjModel* m, int instance) {
+  int nact = actuator_count(m, instance);
+  if (nact == 0) {
+    CONFIG_ERROR(m, instance, "no actuator uses this plugin instance%s", "");
+  }
+  check_actuators(m, instance);
+
+  Muscle mu;
+  memset(&mu, 0, sizeof(mu));
+  mu.rest_length = read_number(m, instance, "rest_length_m", 1, 0.0);
+  mu.rest_diameter = read_number(m, instance, "rest_diameter_m", 1, 0.0);
+  mu.theta_rest_deg = read_number(m, instance, "theta_rest_deg", 1, 0.0);
+  mu.bladder_volume = read_number(m, instance, "bladder_volume_m3", 1, 0.0);
+  mu.deadband = read_number(m, instance, "deadband_Pa", 1, 0.0);
+  mu.lock_stiffness = read_number(m, instance, "lock_stiffness_N_per_m", 0, DEFAULT_LOCK_STIFFNESS);
+  mu.tension_only = read_flag(m, instance, "tension_only");
+  require(m, instance, mu.rest_length > 0, "rest_length_m", mu.rest_length, "must be positive");
+  require(m, instance, mu.rest_diameter > 0, "rest_diameter_m", mu.rest_diameter, "must be positive");
+  require(m, instance, mu.theta_rest_deg > 0 && mu.theta_rest_deg < 90, "theta_rest_deg", mu.theta_rest_deg,
+          "must be in (0, 90) deg");
+  require(m, instance, mu.bladder_volume > 0, "bladder_volume_m3", mu.bladder_volume, "must be positive");
+  require(m, instance, mu.deadband >= 0, "deadband_Pa", mu.deadband, "must not be negative");
+  require(m, instance, mu.lock_stiffness >= 0, "lock_stiffness_N_per_m", mu.lock_stiffness,
+          "must not be negative");
+  mu.law = read_law(m, instance);
+  read_coefficients(m, instance, &mu);
+  derive(m, instance, &mu);
+  check_stable(m, instance, &mu);
+
+  Muscle* out = (Muscle*)malloc(sizeof(Muscle) + sizeof(int) * (size_t)nact);
+  if (!out) {
+    return NULL;
+  }
+  *out = mu;
+  out->nactuator = 0;
+  for (int i = 0; i < m->nactuator; i++) {
+    if (m->actuator_plugin[i] == instance) {
+      out->actuator[out->nactuator++] = i;
+    }
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------------- plugin callbacks
+
+// The pressure the muscle sees: the (clamped) control, or the filtered pressure held in the
+// actuator's activation; with actearly, the activation at the end of this step (as pid.cc).
+static double actuator_pressure(const mjModel* m, const mjData* d, int i) {
+  if (m->actuator_dyntype[i] == mjDYN_NONE) {
+    int u = m->actuator_ctrladr[i];
+    double ctrl = d->ctrl[u];
+    if (m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
+      double interpolated;
+      const mjtNum* read = mj_readCtrl(m, d, i, d->time, &interpolated, m->actuator_history[2 * i + 1]);
+      ctrl = read ? *read : interpolated;
+    }
+    if (m->actuator_ctrllimited[u] && !mjDISABLED(mjDSBL_CLAMPCTRL)) {
+      ctrl = clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
+    }
+    return ctrl;
+  }
+  int adr = m->actuator_actadr[i] + m->actuator_actnum[i] - 1;
+  double act = d->act[adr];
+  if (!m->actuator_actearly[i]) {
+    return act;
+  }
+  double act_dot = d->act_dot[adr];
+  if (m->actuator_dyntype[i] == mjDYN_FILTEREXACT) {
+    double tau = fmax(mjMINVAL, m->actuator_dynprm[i * mjNDYN]);
+    act = act + act_dot * tau * (1 - exp(-m->opt.timestep / tau));
+  } else {
+    act = act + act_dot * m->opt.timestep;
+  }
+  if (m->actuator_actlimited[i]) {
+    act = clip(act, m->actuator_actrange[2 * i], m->actuator_actrange[2 * i + 1]);
+  }
+  return act;
+}
+
+static void muscle_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
+  const Muscle* mu = (const Muscle*)d->plugin_data[instance];
+  if (!mu) {
+    return;
+  }
+  for (int k = 0; k < mu->nactuator; k++) {
+    int i = mu->actuator[k];
+    int out = m->actuator_outadr[i];
+    double tension = muscle_tension(mu, actuator_pressure(m, d, i), d->actuator_length[out]);
+    d->actuator_force[out] = -tension;
+  }
+}
+
+static int muscle_init(const mjModel* m, mjData* d, int instance) {
+  Muscle* mu = muscle_create(m, instance);
+  if (!mu) {
+    mju_warning(PLUGIN_NAME ": out of memory");
+    return -1;
+  }
+  d->plugin_data[instance] = (uintptr_t)mu;
+  return 0;
+}
+
+static void muscle_destroy(mjData* d, int instance) {
+  free((void*)d->plugin_data[instance]);
+  d->plugin_data[instance] = 0;
+}
+
+// mj_copyData keeps dest's own plugin_data (made by its init for the same model); the muscle
+// constants are read-only, so copying them over is all a copy needs.
+static void muscle_copy(mjData* dest, const mjModel* m, const mjData* src, int instance) {
+  const Muscle* from = (const Muscle*)src->plugin_data[instance];
+  Muscle* to = (Muscle*)dest->plugin_data[instance];
+  if (!from || from == to) {
+    return;
+  }
+  if (!to || to->nactuator != from->nactuator) {
+    free(to);
+    to = (Muscle*)malloc(sizeof(Muscle) + sizeof(int) * (size_t)from->nactuator);
+    dest->plugin_data[instance] = (uintptr_t)to;
+    if (!to) {
+      mju_error(PLUGIN_NAME ": out of memory copying mjData");
+      return;
+    }
+  }
+  memcpy(to, from, sizeof(Muscle) + sizeof(int) * (size_t)from->nactuator);
+}
+
+static int muscle_nstate(const mjModel* m, int instance) { return 0; }
+
+static void muscle_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int instance) {}
+
+// ---------------------------------------------------------------------------- registration
+
+// The MuJoCo header version this library was compiled against (the loader compares it with the
+// MuJoCo it runs in).
+EFAM_EXPORT int efam_muscle_mujoco_header_version(void) { return mjVERSION_HEADER; }
+
+// Register efam.muscle with MuJoCo. Returns the plugin slot, or -1 when a different plugin of
+// the same name is already registered (another build of this library). Idempotent.
+EFAM_EXPORT int efam_muscle_register(void) {
+  int slot = -1;
+  const mjpPlugin* existing = mjp_getPlugin(PLUGIN_NAME, &slot);
+  if (existing) {
+    return existing->compute == muscle_compute ? slot : -1;
+  }
+  mjpPlugin plugin;
+  mjp_defaultPlugin(&plugin);
+  plugin.name = PLUGIN_NAME;
+  plugin.capabilityflags |= mjPLUGIN_ACTUATOR;
+  plugin.nattribute = NATTRIBUTE;
+  plugin.attributes = kAttributes;
+  plugin.nstate = muscle_nstate;
+  plugin.init = muscle_init;
+  plugin.destroy = muscle_destroy;
+  plugin.copy = muscle_copy;
+  plugin.reset = muscle_reset;
+  plugin.compute = muscle_compute;
+  return mjp_registerPlugin(&plugin);
+}
