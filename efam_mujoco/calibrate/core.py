@@ -1,0 +1,194 @@
+"""``calibrate``: dead band, braid angle and every stress law from recordings, with held-out errors.
+
+The procedure (paper Sec. 4.3-4.8, automated):
+
+1. blocked forces at the resting length -> dead band (zero crossing, Sec. 4.3) and, from the
+   slope and the resting diameter, the resting braid angle (Sec. 4.4); outliers rejected;
+2. each stress law fitted with the geometry that braid angle gives (``fit.fit_law``);
+3. held-out error: leave one pressure level out (for isobaric strokes; one recording out for
+   other data), re-run 1-2 on the rest, predict the level left out; the RMS over all held-out
+   samples;
+4. best law: the smallest held-out RMS error (the smallest in-sample one if nothing was held out).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..muscle import Muscle, MuscleError
+from ..musclefile import save_muscle
+from ..recordings import Recording
+from ..stress import LAW_NAMES, StressLaw
+from .blocked import BlockedForceFit, blocked_points, fit_blocked
+from .data import Samples, pool
+from .fit import LawFit, Problem, fit_law
+
+#: A placeholder law for the base muscle before any law is fitted (linear laws are always stable).
+_PLACEHOLDER = StressLaw("linear", (1.0e6, 0.0))
+
+
+@dataclass
+class Calibration:
+    """Everything ``calibrate`` found. ``muscle`` is the best law's muscle."""
+
+    deadband_Pa: float
+    theta_rest_deg: float
+    blocked: BlockedForceFit
+    fits: dict[str, LawFit]
+    heldout_rms_N: dict[str, float | None]
+    best_law: str
+    seconds: float
+    problem: Problem
+    geometry_theta_rest_deg: float  # the muscle's braid angle before calibration
+
+    @property
+    def muscle(self) -> Muscle:
+        return self.fits[self.best_law].muscle
+
+    def to_json(self) -> dict:
+        """The summary: {"deadband_kPa", "theta_rest_deg", "laws": {...}, "best_law"}."""
+        return {
+            "deadband_kPa": self.deadband_Pa / 1e3,
+            "theta_rest_deg": self.theta_rest_deg,
+            "laws": {
+                law: {
+                    "coefficients": fit.coefficients,
+                    "eq14_error_pct": fit.eq14_error_pct,
+                    "rms_N": fit.rms_N,
+                    "heldout_rms_N": self.heldout_rms_N.get(law),
+                    "stable": fit.stable,
+                }
+                for law, fit in self.fits.items()
+            },
+            "best_law": self.best_law,
+        }
+
+    def save_muscle(self, path, **extra):
+        """A muscle file with every fitted law, the best one as default."""
+        laws = {law: fit.stress for law, fit in self.fits.items()}
+        summary = {
+            "deadband_kPa": self.deadband_Pa / 1e3,
+            "theta_rest_deg": self.theta_rest_deg,
+            "theta_rest_deg_before": self.geometry_theta_rest_deg,
+            "best_law": self.best_law,
+            "rms_N": {law: fit.rms_N for law, fit in self.fits.items()},
+            "heldout_rms_N": self.heldout_rms_N,
+            "eq14_error_pct": {law: fit.eq14_error_pct for law, fit in self.fits.items()},
+            "sources": [r.meta.get("source", "") for r in self.problem.recordings],
+        }
+        return save_muscle(path, self.muscle, laws, calibration=summary, **extra)
+
+
+def resolve_laws(laws) -> tuple[str, ...]:
+    if laws in (None, "all"):
+        return LAW_NAMES
+    names = (laws,) if isinstance(laws, str) else tuple(laws)
+    for name in names:
+        if name not in LAW_NAMES:
+            raise ValueError(f"unknown stress law '{name}' (known: {', '.join(LAW_NAMES)}, or 'all')")
+    return names
+
+
+def geometry_from_blocked(
+    samples: Samples, muscle: Muscle, estimate_theta: bool = True
+) -> tuple[BlockedForceFit, Muscle]:
+    """Sec. 4.3-4.4 on pooled samples: the blocked-force fit and the muscle with its results."""
+    P, F = blocked_points(samples, muscle.rest_length_m)
+    blocked = fit_blocked(P, F, muscle.rest_diameter_m)
+    theta = blocked.theta_rest_deg if estimate_theta else muscle.theta_rest_deg
+    try:
+        base = replace(muscle, theta_rest_deg=theta, deadband_Pa=blocked.deadband_Pa, stress=_PLACEHOLDER)
+    except MuscleError as err:
+        raise ValueError(
+            f"the braid angle from the blocked forces ({theta:.3f} deg) gives an impossible muscle: {err}"
+        ) from None
+    return blocked, base
+
+
+def calibrate(
+    recordings: list[Recording],
+    muscle: Muscle,
+    laws="all",
+    *,
+    estimate_theta: bool = True,
+    fit_deadband: bool = False,
+    objective: str | None = None,
+    heldout: bool = True,
+    n: int = 5,
+) -> Calibration:
+    """Calibrate ``muscle`` (its geometry: rest length and diameter, bladder volume; its
+    ``tension_only``) on recordings. ``estimate_theta=False`` keeps the muscle's braid angle
+    (the paper's choice for its final fits); ``fit_deadband=True`` refits the dead band with each
+    law instead of keeping the Sec. 4.3 estimate; ``objective`` as in :func:`fit.fit_law`.
+    """
+    t0 = time.perf_counter()
+    names = resolve_laws(laws)
+    recordings = list(recordings)
+    samples = pool(recordings)
+    blocked, base = geometry_from_blocked(samples, muscle, estimate_theta)
+    problem = Problem(base, recordings, n=n, samples=samples)
+    fits = {law: fit_law(base, problem, law, fit_deadband, objective=objective) for law in names}
+    held = (
+        _heldout(recordings, samples, muscle, names, estimate_theta, fit_deadband, objective, n)
+        if heldout
+        else {}
+    )
+    scores = {law: held.get(law) for law in names}
+    if all(v is not None and math.isfinite(v) for v in scores.values()) and scores:
+        best = min(names, key=lambda law: scores[law])
+    else:
+        best = min(names, key=lambda law: fits[law].rms_N)
+    return Calibration(
+        deadband_Pa=blocked.deadband_Pa, theta_rest_deg=base.theta_rest_deg, blocked=blocked, fits=fits,
+        heldout_rms_N=scores, best_law=best, seconds=time.perf_counter() - t0, problem=problem,
+        geometry_theta_rest_deg=muscle.theta_rest_deg,
+    )  # fmt: skip
+
+
+def folds(samples: Samples) -> list[np.ndarray]:
+    """Held-out groups: one per pressure level (isobaric data), else one per recording."""
+    if samples.isobaric:
+        return [samples.level == j for j in range(len(samples.levels_Pa))]
+    recs = np.unique(samples.recording)
+    return [samples.recording == r for r in recs] if len(recs) > 1 else []
+
+
+def _heldout(recordings, samples, muscle, names, estimate_theta, fit_deadband, objective, n) -> dict:
+    """Pooled RMS over each fold's held-out samples, the model refitted without them."""
+    sq = {law: 0.0 for law in names}
+    count = 0
+    for out in folds(samples):
+        train = _split(recordings, samples, ~out)
+        test = _split(recordings, samples, out)
+        train_samples = pool(train)
+        try:
+            _, base = geometry_from_blocked(train_samples, muscle, estimate_theta)
+        except ValueError:
+            return {}  # too few pressures left to estimate the dead band: no held-out error
+        problem = Problem(base, train, n=n, samples=train_samples)
+        fold_objective = objective if problem.points is not None else "lsq"
+        test_samples = pool(test)
+        count += len(test_samples)
+        for law in names:
+            fit = fit_law(base, problem, law, fit_deadband, objective=fold_objective)
+            predicted = fit.muscle.tension(test_samples.pressure_Pa, test_samples.length_m)
+            sq[law] += float(np.sum((predicted - test_samples.tension_N) ** 2))
+    if count == 0:
+        return {}
+    return {law: math.sqrt(sq[law] / count) for law in names}
+
+
+def _split(recordings: list[Recording], samples: Samples, mask: np.ndarray) -> list[Recording]:
+    """The recordings restricted to the pooled samples in ``mask`` (empty ones dropped)."""
+    out = []
+    start = 0
+    for r in recordings:
+        part = mask[start : start + len(r)]
+        start += len(r)
+        if part.any():
+            out.append(r.subset(part))
+    return out

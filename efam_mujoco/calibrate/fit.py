@@ -1,0 +1,532 @@
+"""Stress-law coefficients from recordings: variable projection, then an Eq. 14 polish.
+
+Why it is fast and needs no initial guess. Eq. 2 is
+
+    F = max(P - P_db, 0) g(L) + sigma(eps_z, P) a_z(L) - sigma(eps_c, P) a_c(L)
+
+with g = (3L^2 - B^2)/(4 pi N^2), a_z = V_B/L, a_c = t_B L^2/(2 pi R_o N^2), all fixed by the
+geometry. Every law is a sum ``sum_j c_j b_j(eps, P)`` in which most coefficients enter linearly
+(E1, E2 always; E3 of the polynomial, exponential-decay, sigmoid and arccot laws; E4 of the
+polynomial) and at most two (E4; the exponent law's E3 and E4) enter non-linearly. So:
+
+1. the per-sample geometry is computed once;
+2. for given non-linear coefficients, the linear ones (and, with ``fit_deadband``, the dead band,
+   whose term ``-P_db g(L)`` is linear too while the set of samples above it is fixed) come from
+   one bounded linear least-squares solve on a k x k problem (k <= 5) -- exact, no start needed;
+3. the non-linear coefficients (0, 1 or 2 of them) are searched over their whole search box
+   (``stress.LAWS[law].search``): a grid, then a bounded local refinement from the best points.
+
+Bounds: the linear coefficients stay in the law's search box (bounded-variable least squares).
+Drucker stability: every law but the polynomial one is stable inside its bounds (stress.py); the
+polynomial law's slope ``E1 + 2 E3 eps + 3 E4 eps^2`` is linear in the coefficients at each
+strain, so stability over the muscle's whole strain range is a set of linear inequalities, imposed
+exactly in the linear solve (cutting planes at the slope's minimum until it is positive).
+
+A slack tension-only muscle (``muscle.tension_only``) carries ``max(F, 0)``: samples the model
+calls slack and the data shows slack are left out of the linear solve, the rest kept (an active
+set iterated to a fixed point), and the reported error uses the clipped model.
+
+``objective="eq14"`` (default when the data are isobaric strokes) then minimises the paper's
+Eq. 14 error itself, with Nelder-Mead over all coefficients started from the least-squares
+optimum -- the paper's criterion with a start no hand-picked guess can beat.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import lsq_linear, minimize, minimize_scalar
+
+from ..muscle import Muscle
+from ..recordings import Recording
+from ..stress import LAW_NAMES, LAWS, StressLaw, StressLawError
+from .data import ComparisonPoints, Samples, comparison_points, pool
+
+#: Coefficients that enter the law non-linearly (searched); the others are solved linearly.
+NONLINEAR = {
+    "linear": (),
+    "polynomial": (),
+    "exponential_decay": ("E4",),
+    "exponent": ("E3", "E4"),
+    "sigmoid": ("E4",),
+    "arccot": ("E4",),
+}
+#: Smallest d sigma/d eps accepted for the polynomial law, Pa (a strictly positive margin).
+STABILITY_MARGIN_PA = 1e3
+#: Samples kept per recording for fitting (consecutive samples averaged beyond this).
+MAX_SAMPLES_PER_RECORDING = 800
+OBJECTIVES = ("eq14", "lsq")
+
+
+def _signed_power(e, p):
+    return np.sign(e) * np.abs(e) ** p
+
+
+def stress_basis(law: str, nonlinear: dict[str, float], eps, P) -> list[np.ndarray]:
+    """sigma = sum_j c_j basis_j over the law's linearly-entering coefficients (params order)."""
+    e = np.asarray(eps, dtype=float)
+    linear = [e, P * e]
+    if law == "linear":
+        return linear
+    if law == "polynomial":
+        return linear + [e * e, e * e * e]
+    if law == "exponent":
+        return [e + _signed_power(e, nonlinear["E3"]) + _signed_power(e, nonlinear["E4"]), P * e]
+    k = nonlinear["E4"]
+    if law == "exponential_decay":
+        return linear + [1.0 - np.exp(-k * e)]
+    if law == "sigmoid":
+        return linear + [np.tanh(k * e)]
+    if law == "arccot":
+        return linear + [(2.0 / np.pi) * np.arctan(k * e)]
+    raise StressLawError(f"unknown stress law '{law}' (known: {', '.join(LAW_NAMES)})")
+
+
+def linear_params(law: str) -> tuple[str, ...]:
+    return tuple(p for p in LAWS[law].params if p not in NONLINEAR[law])
+
+
+class Design:
+    """Per-sample geometry of Eq. 2 for a set of samples (each may belong to its own muscle)."""
+
+    def __init__(self, muscles: list[Muscle], recording: np.ndarray, P, L, tension, deadband_Pa: float):
+        self.P = np.asarray(P, dtype=float)
+        self.tension = np.asarray(tension, dtype=float)
+        self.deadband_Pa = float(deadband_Pa)
+        n = len(self.P)
+        self.g, self.az, self.ac, self.ez, self.ec, self.lock = (np.empty(n) for _ in range(6))
+        L = np.asarray(L, dtype=float)
+        for i, m in enumerate(muscles):
+            rows = recording == i
+            if not rows.any():
+                continue
+            Lr = L[rows]
+            Lc = np.clip(Lr, m.min_length_m, m.max_length_m)
+            r_out = m.outer_radius(Lc)
+            t = m.wall_thickness(Lc)
+            ez, ec = m.strains(Lc)
+            self.g[rows] = (3 * Lc * Lc - m.thread_length_m**2) / (4 * math.pi * m.turns**2)
+            self.az[rows] = m.bladder_volume_m3 / Lc
+            self.ac[rows] = t * Lc * Lc / (2 * math.pi * r_out * m.turns**2)
+            self.ez[rows], self.ec[rows] = ez, ec
+            self.lock[rows] = m.lock_stiffness_N_per_m * (Lr - Lc)
+        self.tension_only = muscles[0].tension_only
+
+    def __len__(self) -> int:
+        return len(self.P)
+
+    def columns(self, law: str, nonlinear: dict[str, float]) -> np.ndarray:
+        bz = stress_basis(law, nonlinear, self.ez, self.P)
+        bc = stress_basis(law, nonlinear, self.ec, self.P)
+        return np.column_stack([z * self.az - c * self.ac for z, c in zip(bz, bc)])
+
+    def predict(self, stress: StressLaw, deadband_Pa: float | None = None) -> np.ndarray:
+        """Eq. 2 tension, exactly as Muscle.tension computes it."""
+        d = self.deadband_Pa if deadband_Pa is None else deadband_Pa
+        gauge = np.maximum(np.maximum(self.P, 0.0) - d, 0.0)
+        P = np.maximum(self.P, 0.0)
+        force = gauge * self.g + stress(self.ez, P) * self.az - stress(self.ec, P) * self.ac + self.lock
+        return np.maximum(force, 0.0) if self.tension_only else force
+
+
+@dataclass
+class LawFit:
+    """One law fitted to recordings. ``muscle`` carries the fitted law and dead band."""
+
+    law: str
+    muscle: Muscle
+    coefficients: dict[str, float]
+    rms_N: float
+    eq14_error_pct: float | None
+    stable: bool
+    seconds: float
+    deadband_Pa: float = 0.0
+    eq14_by_k: dict[str, float] = field(default_factory=dict)  # Table 3 rows
+    objective: str = "lsq"
+    evaluations: int = 0
+    method: str = "variable projection"
+
+    @property
+    def stress(self) -> StressLaw:
+        return self.muscle.stress
+
+
+# --------------------------------------------------------------------------------- problem
+class Problem:
+    """Recordings prepared for fitting one or more laws to one muscle geometry."""
+
+    def __init__(
+        self,
+        muscle: Muscle,
+        recordings: list[Recording],
+        *,
+        muscle_for: Callable[[Recording], Muscle] | None = None,
+        n: int = 5,
+        max_samples_per_recording: int = MAX_SAMPLES_PER_RECORDING,
+        samples: Samples | None = None,
+    ):
+        self.muscle = muscle
+        self.recordings = recordings
+        self.muscles = [muscle_for(r) if muscle_for else muscle for r in recordings]
+        self.samples = pool(recordings) if samples is None else samples
+        self.n = n
+        self.reduced = _reduce(self.samples, max_samples_per_recording)
+        self.points = comparison_points(self.samples, [m.rest_length_m for m in self.muscles], n)
+        lo, hi = zip(*(m.strain_range() for m in self.muscles))
+        self.strain_range = (min(lo), max(hi))
+
+    def subset(self, mask) -> Problem:
+        """The same problem on a subset of the samples (held-out validation)."""
+        clone = object.__new__(Problem)
+        clone.__dict__.update(self.__dict__)
+        clone.samples = self.samples.take(mask)
+        clone.reduced = _reduce(clone.samples, MAX_SAMPLES_PER_RECORDING)
+        clone.points = comparison_points(clone.samples, [m.rest_length_m for m in self.muscles], self.n)
+        return clone
+
+    def design(self, which: str, deadband_Pa: float) -> Design:
+        s = self.reduced if which == "fit" else self.samples
+        if which == "points":
+            pts = self.points
+            return Design(self.muscles, pts.recording, pts.pressure_Pa, pts.length_m,
+                          pts.tension_N, deadband_Pa)  # fmt: skip
+        return Design(self.muscles, s.recording, s.pressure_Pa, s.length_m, s.tension_N, deadband_Pa)
+
+
+def _reduce(samples: Samples, max_per_recording: int) -> Samples:
+    """Average consecutive samples (never across recordings or levels) to bound the fit size."""
+    keys = []
+    for rec in np.unique(samples.recording):
+        idx = np.nonzero(samples.recording == rec)[0]
+        idx = idx[np.argsort(samples.time_s[idx], kind="stable")]
+        chunk = max(1, math.ceil(len(idx) / max_per_recording))
+        level = samples.level[idx]
+        start = (np.arange(len(idx)) % chunk == 0) | np.r_[True, level[1:] != level[:-1]]
+        keys.append((idx, np.nonzero(start)[0]))
+    if all(len(starts) == len(idx) for idx, starts in keys):
+        return samples
+    cols = {name: [] for name in ("time_s", "length_m", "pressure_Pa", "tension_N", "recording", "level")}
+    for idx, starts in keys:
+        counts = np.diff(np.r_[starts, len(idx)])
+        for name in ("time_s", "length_m", "pressure_Pa", "tension_N"):
+            cols[name].append(np.add.reduceat(getattr(samples, name)[idx], starts) / counts)
+        cols["recording"].append(samples.recording[idx][starts])
+        cols["level"].append(samples.level[idx][starts])
+    return Samples(**{k: np.concatenate(v) for k, v in cols.items()}, levels_Pa=samples.levels_Pa)
+
+
+# ---------------------------------------------------------------------------- linear solve
+@dataclass
+class _Solution:
+    linear: np.ndarray
+    deadband_Pa: float
+    cost: float
+
+
+class _LinearSolver:
+    """min ||A c - y|| over the linear coefficients (and the dead band) for fixed non-linear ones."""
+
+    def __init__(self, design: Design, law: str, fit_deadband: bool, deadband_hi: float, strain_range):
+        self.d = design
+        self.law = law
+        self.fit_deadband = fit_deadband
+        names = linear_params(law)
+        box = dict(zip(LAWS[law].params, LAWS[law].search))
+        self.lo = np.array([box[p][0] for p in names] + ([0.0] if fit_deadband else []))
+        self.hi = np.array([box[p][1] for p in names] + ([deadband_hi] if fit_deadband else []))
+        self.k = len(names)
+        self.strain_range = strain_range
+        self.evaluations = 0
+
+    def solve(self, nonlinear: dict[str, float]) -> _Solution:
+        self.evaluations += 1
+        d = self.d
+        A_stress = d.columns(self.law, nonlinear)
+        deadband = d.deadband_Pa
+        rows = np.ones(len(d), dtype=bool)
+        P = np.maximum(d.P, 0.0)
+        solution = None
+        for _ in range(12):
+            above = P > deadband
+            if self.fit_deadband:
+                A = np.column_stack([A_stress, -d.g * above])
+                y = d.tension - d.lock - P * above * d.g
+            else:
+                A = A_stress
+                y = d.tension - d.lock - np.maximum(P - deadband, 0.0) * d.g
+            coef = self._bounded_lsq(A[rows], y[rows])
+            new_deadband = float(coef[-1]) if self.fit_deadband else deadband
+            model = A @ coef - y + d.tension  # y = tension - (pressure term + lock)
+            new_rows = (model > 0) | (d.tension > 0) if d.tension_only else rows
+            new_above = P > new_deadband
+            solution = _Solution(coef[: self.k], new_deadband, 0.0)
+            if np.array_equal(new_rows, rows) and np.array_equal(new_above, above):
+                break
+            rows, deadband = new_rows, new_deadband
+        model = A @ coef - y + d.tension
+        if d.tension_only:
+            model = np.maximum(model, 0.0)
+        r = model - d.tension
+        solution.cost = float(r @ r)
+        return solution
+
+    def _bounded_lsq(self, A: np.ndarray, y: np.ndarray) -> np.ndarray:
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        As = A / scale
+        Q, R = np.linalg.qr(As)
+        z = Q.T @ y
+        lo, hi = self.lo * scale, self.hi * scale
+        try:
+            x = np.linalg.solve(R, z)
+        except np.linalg.LinAlgError:
+            x = np.full(len(z), np.nan)
+        if not (np.all(np.isfinite(x)) and np.all(x >= lo) and np.all(x <= hi)):
+            x = lsq_linear(R, z, bounds=(lo, hi), method="bvls").x
+        coef = x / scale
+        unstable = (
+            self.law == "polynomial" and _quad_min(*coef[[0, 2, 3]], self.strain_range) < STABILITY_MARGIN_PA
+        )
+        if unstable:
+            coef = _stable_polynomial(R, z, scale, lo, hi, self.strain_range)
+        return coef
+
+
+def _quad_min(E1, E3, E4, strain_range) -> float:
+    lo, hi = strain_range
+    candidates = [lo, hi]
+    if E4 != 0:
+        vertex = -E3 / (3 * E4)
+        if lo < vertex < hi:
+            candidates.append(vertex)
+    return min(E1 + 2 * E3 * e + 3 * E4 * e * e for e in candidates)
+
+
+def _stable_polynomial(R, z, scale, lo, hi, strain_range) -> np.ndarray:
+    """min ||R x - z|| in bounds with E1 + 2 E3 e + 3 E4 e^2 >= margin over the strain range."""
+    grid = list(np.linspace(*strain_range, 41))
+    k = len(z)
+
+    def rows_for(strains):
+        G = np.zeros((len(strains), k))
+        for i, e in enumerate(strains):
+            G[i, 0], G[i, 2], G[i, 3] = 1.0, 2 * e, 3 * e * e
+        return G / scale  # constraints act on coef = x / scale
+
+    x = np.clip(np.linalg.lstsq(R, z, rcond=None)[0], lo, hi)
+    for _ in range(8):
+        G = rows_for(grid)
+        constraint = {
+            "type": "ineq",
+            "fun": lambda v, G=G: G @ v - 2 * STABILITY_MARGIN_PA,
+            "jac": lambda v, G=G: G,
+        }
+        result = minimize(
+            lambda v: 0.5 * float((R @ v - z) @ (R @ v - z)),
+            x,
+            jac=lambda v: R.T @ (R @ v - z),
+            bounds=list(zip(lo, hi)),
+            constraints=[constraint],
+            method="SLSQP",
+            options={"maxiter": 200, "ftol": 1e-12},
+        )
+        x = result.x
+        coef = x / scale
+        if _quad_min(coef[0], coef[2], coef[3], strain_range) >= STABILITY_MARGIN_PA:
+            return coef
+        grid.append(-coef[2] / (3 * coef[3]))  # cut at the slope's minimum and solve again
+    return coef
+
+
+# ----------------------------------------------------------------------------- outer search
+def _search(solver: _LinearSolver, law: str) -> tuple[dict[str, float], _Solution]:
+    names = NONLINEAR[law]
+    if not names:
+        return {}, solver.solve({})
+    box = dict(zip(LAWS[law].params, LAWS[law].search))
+    if len(names) == 1:
+        (name,) = names
+        lo, hi = (math.log(v) for v in box[name])
+        grid = np.linspace(lo, hi, 25)
+        costs = [solver.solve({name: math.exp(u)}).cost for u in grid]
+        i = int(np.argmin(costs))
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+        best = minimize_scalar(
+            lambda u: solver.solve({name: math.exp(u)}).cost, bounds=(a, b), method="bounded",
+            options={"xatol": 1e-4},
+        )  # fmt: skip
+        u = float(best.x) if best.fun <= costs[i] else float(grid[i])
+        return {name: math.exp(u)}, solver.solve({name: math.exp(u)})
+    # two non-linear coefficients (the exponent law): grid, then local refinement from the best
+    boxes = [box[n] for n in names]
+    unit = lambda x: {n: b[0] + xi * (b[1] - b[0]) for n, b, xi in zip(names, boxes, x)}  # noqa: E731
+    axis = np.linspace(0.0, 1.0, 9)
+    grid = [(u, v) for u in axis for v in axis]
+    costs = np.array([solver.solve(unit(x)).cost for x in grid])
+    best_x, best_cost = None, math.inf
+    for i in np.argsort(costs)[:3]:
+        result = minimize(
+            lambda x: solver.solve(unit(x)).cost, np.array(grid[i]), method="Nelder-Mead",
+            bounds=[(0.0, 1.0)] * 2, options={"xatol": 1e-5, "fatol": 1e-9 * costs[i], "maxfev": 200},
+        )  # fmt: skip
+        if result.fun < best_cost:
+            best_x, best_cost = result.x, result.fun
+    nonlinear = unit(best_x)
+    return nonlinear, solver.solve(nonlinear)
+
+
+def _assemble(law: str, nonlinear: dict[str, float], linear: np.ndarray) -> tuple[float, ...]:
+    values = dict(zip(linear_params(law), linear))
+    values.update(nonlinear)
+    return tuple(float(values[p]) for p in LAWS[law].params)
+
+
+# ------------------------------------------------------------------------------ Eq. 14
+def eq14_table(points: ComparisonPoints, model_tension: np.ndarray) -> dict[str, float]:
+    """Table 3 rows: mean relative error (%) over pressures at each comparison length.
+
+    ``blocked`` is the paper's near-blocked row (eps = 5e-4), ``k/n`` the Eq. 14 points and
+    ``eq14`` Eq. 14 itself: the mean over pressures of the mean over k = 1..n.
+    """
+    rel = np.abs(points.tension_N - model_tension) / np.abs(points.tension_N) * 100.0
+    table: dict[str, float] = {}
+    for k in range(0, points.n + 1):
+        at = points.k == k
+        if at.any():
+            table["blocked" if k == 0 else f"{k}/{points.n}"] = float(np.mean(rel[at]))
+    table["eq14"] = eq14_value(points, rel)
+    return table
+
+
+def eq14_value(points: ComparisonPoints, rel_pct: np.ndarray) -> float:
+    per_level = [np.mean(rel_pct[(points.level == j) & (points.k > 0)]) for j in np.unique(points.level)]
+    per_level = [v for v in per_level if np.isfinite(v)]
+    return float(np.mean(per_level)) if per_level else math.nan
+
+
+class Eq14:
+    """Eq. 14 error of a coefficient vector (a large penalty outside bounds or when unstable)."""
+
+    PENALTY = 1e6
+
+    def __init__(self, problem: Problem, law: str, deadband_Pa: float):
+        self.points = problem.points
+        self.design = problem.design("points", deadband_Pa)
+        self.law = law
+        self.strain_range = problem.strain_range
+        self.evaluations = 0
+
+    def __call__(self, coefficients) -> float:
+        self.evaluations += 1
+        try:
+            stress = StressLaw(self.law, tuple(coefficients))
+            stress.check_stable(*self.strain_range)
+        except StressLawError:
+            return self.PENALTY
+        model = self.design.predict(stress)
+        rel = np.abs(self.points.tension_N - model) / np.abs(self.points.tension_N) * 100.0
+        value = eq14_value(self.points, rel)
+        return value if np.isfinite(value) else self.PENALTY
+
+
+def _polish_eq14(eq14: Eq14, start: tuple[float, ...], law: str) -> tuple[tuple[float, ...], float]:
+    """Nelder-Mead on Eq. 14 in coordinates scaled by the start, within the search box."""
+    box = np.array(LAWS[law].search, dtype=float)
+    width = box[:, 1] - box[:, 0]
+    scale = np.where(np.abs(start) > 1e-9 * width, np.abs(start), 1e-3 * width)
+    x0 = np.array(start) / scale
+    f0 = eq14(start)
+    result = minimize(
+        lambda x: eq14(tuple(x * scale)), x0, method="Nelder-Mead",
+        bounds=list(zip(box[:, 0] / scale, box[:, 1] / scale)),
+        options={"xatol": 1e-7, "fatol": 1e-7, "maxfev": 400 * len(start), "adaptive": True},
+    )  # fmt: skip
+    if result.fun < f0:
+        return tuple(float(v) for v in result.x * scale), float(result.fun)
+    return start, f0
+
+
+# ------------------------------------------------------------------------------- fit_law
+def fit_law(
+    muscle: Muscle,
+    recordings: list[Recording] | Problem,
+    law: str,
+    fit_deadband: bool = True,
+    *,
+    objective: str | None = None,
+    muscle_for: Callable[[Recording], Muscle] | None = None,
+    n: int = 5,
+) -> LawFit:
+    """Fit ``law``'s coefficients (and, with ``fit_deadband``, the dead band) to recordings.
+
+    ``muscle`` gives the geometry (rest length and diameter, braid angle, bladder volume), the
+    dead band (the start, or the value kept when ``fit_deadband`` is False) and ``tension_only``;
+    its stress law is ignored. ``objective``: ``"lsq"`` (least squares in N over all samples) or
+    ``"eq14"`` (then the paper's Eq. 14 error, polished from the least-squares optimum); default
+    ``"eq14"`` for isobaric strokes and ``"lsq"`` otherwise. ``muscle_for(recording)`` gives a
+    recording its own muscle (e.g. the same tube cut to another length); the returned fit's
+    ``muscle`` is ``muscle`` with the fitted law and dead band.
+    """
+    start = time.perf_counter()
+    if law not in LAWS:
+        raise StressLawError(f"unknown stress law '{law}' (known: {', '.join(LAW_NAMES)})")
+    problem = recordings if isinstance(recordings, Problem) else Problem(
+        muscle, list(recordings), muscle_for=muscle_for, n=n
+    )  # fmt: skip
+    if objective is None:
+        objective = "eq14" if problem.points is not None else "lsq"
+    if objective not in OBJECTIVES:
+        raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
+    if objective == "eq14" and problem.points is None:
+        raise ValueError("objective 'eq14' needs isobaric strokes (Eq. 14 compares along a stroke)")
+    deadband_hi = _deadband_limit(problem.samples)
+    solver = _LinearSolver(
+        problem.design("fit", min(muscle.deadband_Pa, deadband_hi)), law, fit_deadband, deadband_hi,
+        problem.strain_range,
+    )  # fmt: skip
+    nonlinear, solution = _search(solver, law)
+    coefficients = _assemble(law, nonlinear, solution.linear)
+    deadband = solution.deadband_Pa
+    evaluations = solver.evaluations
+    if objective == "eq14":
+        eq14 = Eq14(problem, law, deadband)
+        coefficients, _ = _polish_eq14(eq14, coefficients, law)
+        evaluations += eq14.evaluations
+    return finish_fit(problem, law, coefficients, deadband, objective, start, evaluations)
+
+
+def _deadband_limit(samples: Samples) -> float:
+    """The dead band stays below the lowest tested level (isobaric) or half the top pressure."""
+    positive = samples.levels_Pa[samples.levels_Pa > 0] if samples.isobaric else np.array([])
+    if len(positive):
+        return 0.95 * float(positive.min())
+    return 0.5 * float(np.max(samples.pressure_Pa))
+
+
+def finish_fit(
+    problem: Problem, law: str, coefficients, deadband_Pa: float, objective: str, start: float,
+    evaluations: int, method: str = "variable projection",
+) -> LawFit:  # fmt: skip
+    """Score coefficients on all samples and package them as a :class:`LawFit`."""
+    stress = StressLaw(law, tuple(coefficients))
+    try:
+        stress.check_stable(*problem.strain_range)
+        stable = True
+    except StressLawError:
+        stable = False
+    fitted = replace(problem.muscle, stress=stress, deadband_Pa=float(deadband_Pa))
+    model = problem.design("all", deadband_Pa).predict(stress)
+    rms = float(np.sqrt(np.mean((model - problem.samples.tension_N) ** 2)))
+    table: dict[str, float] = {}
+    if problem.points is not None:
+        table = eq14_table(problem.points, problem.design("points", deadband_Pa).predict(stress))
+    return LawFit(
+        law=law, muscle=fitted, coefficients=stress.to_dict(), rms_N=rms,
+        eq14_error_pct=table.get("eq14"), stable=stable, seconds=time.perf_counter() - start,
+        deadband_Pa=float(deadband_Pa), eq14_by_k=table, objective=objective, evaluations=evaluations,
+        method=method,
+    )  # fmt: skip
