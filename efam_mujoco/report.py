@@ -1,0 +1,192 @@
+"""``efam muscle`` and ``efam demo``: a muscle's constants and its analytic vs MuJoCo behaviour."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import rig
+from .muscle import Muscle
+from .musclefile import load_muscle
+from .stress import LAW_NAMES
+
+PSI_TO_PA = 6894.757293168361
+PAPER_PRESSURES_PA = tuple(p * PSI_TO_PA for p in (15, 30, 45, 60, 75))  # 103.4 ... 517.1 kPa
+
+
+@dataclass(frozen=True)
+class PressureRow:
+    pressure_Pa: float
+    blocked_analytic_N: float  # push positive
+    blocked_mujoco_N: float
+    extension_analytic: float  # fraction of resting length
+    extension_mujoco: float
+
+
+def compare(muscle: Muscle, pressures_Pa=PAPER_PRESSURES_PA) -> list[PressureRow]:
+    """Blocked force (Eq. 9) and free extension (root of Eq. 2) beside the MuJoCo rig's."""
+    return [
+        PressureRow(
+            pressure_Pa=p,
+            blocked_analytic_N=-muscle.blocked_force(p),
+            blocked_mujoco_N=rig.blocked_force(muscle, p),
+            extension_analytic=float(muscle.free_extension(p)),
+            extension_mujoco=rig.free_extension(muscle, p),
+        )
+        for p in pressures_Pa
+    ]
+
+
+def constants_dict(muscle: Muscle) -> dict:
+    return {
+        "name": muscle.name,
+        "kind": muscle.kind,
+        "stress_law": muscle.stress.name,
+        "stress_coefficients": muscle.stress.to_dict(),
+        "rest_length_m": muscle.rest_length_m,
+        "rest_diameter_m": muscle.rest_diameter_m,
+        "theta_rest_deg": muscle.theta_rest_deg,
+        "turns": muscle.turns,
+        "thread_length_m": muscle.thread_length_m,
+        "bladder_volume_m3": muscle.bladder_volume_m3,
+        "rest_wall_thickness_m": muscle.rest_wall_thickness_m,
+        "deadband_kPa": muscle.deadband_Pa / 1e3,
+        "admissible_length_m": [muscle.min_length_m, muscle.max_length_m],
+    }
+
+
+def report_dict(muscle: Muscle, rows: list[PressureRow]) -> dict:
+    doc = constants_dict(muscle)
+    doc["sign"] = "blocked_force_N positive = the muscle pushes its ends apart"
+    doc["rows"] = [
+        {
+            "pressure_kPa": r.pressure_Pa / 1e3,
+            "blocked_force_N": {"analytic": r.blocked_analytic_N, "mujoco": r.blocked_mujoco_N},
+            "free_extension": {"analytic": r.extension_analytic, "mujoco": r.extension_mujoco},
+        }
+        for r in rows
+    ]
+    return doc
+
+
+def format_report(muscle: Muscle, rows: list[PressureRow]) -> str:
+    c = constants_dict(muscle)
+    lines = [
+        f"{muscle.name or 'muscle'} ({c['kind']}), stress law {c['stress_law']}",
+        f"  resting length {c['rest_length_m'] * 100:.3f} cm, resting diameter {c['rest_diameter_m'] * 100:.3f} cm",
+        f"  resting braid angle {c['theta_rest_deg']:.3f} deg, turns N {c['turns']:.4f}, "
+        f"thread length B {c['thread_length_m'] * 100:.3f} cm",
+        f"  bladder volume V_B {c['bladder_volume_m3'] * 1e3:.5f} L, wall at rest "
+        f"{c['rest_wall_thickness_m'] * 1e3:.3f} mm, dead band {c['deadband_kPa']:.2f} kPa",
+        f"  admissible length {c['admissible_length_m'][0] * 100:.2f} .. {c['admissible_length_m'][1] * 100:.2f} cm",
+        "",
+        "  pressure   blocked force (push +), N       free extension, % of rest length",
+        "      kPa   analytic    MuJoCo   diff %     analytic   MuJoCo   diff %",
+    ]
+    for r in rows:
+        lines.append(
+            f"  {r.pressure_Pa / 1e3:7.1f}  {r.blocked_analytic_N:9.2f} {r.blocked_mujoco_N:9.2f}"
+            f" {_pct(r.blocked_mujoco_N, r.blocked_analytic_N):8.3f}"
+            f"   {100 * r.extension_analytic:9.2f} {100 * r.extension_mujoco:8.2f}"
+            f" {_pct(r.extension_mujoco, r.extension_analytic):8.3f}"
+        )
+    return "\n".join(lines)
+
+
+def _pct(value: float, reference: float) -> float:
+    return 100.0 * (value - reference) / reference if reference else 0.0
+
+
+def force_stroke_figure(muscle: Muscle, path: Path, pressures_Pa=PAPER_PRESSURES_PA) -> Path:
+    """Force-stroke curves at each pressure: analytic lines, MuJoCo rig points (paper Fig. 6)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    stroke_line = np.linspace(0.0, 1.05, 200)
+    stroke_points = np.linspace(0.0, 1.05, 15)
+    for p, color in zip(pressures_Pa, plt.cm.viridis(np.linspace(0.1, 0.9, len(pressures_Pa)))):
+        L = muscle.rest_length_m * (1 + stroke_line)
+        ax.plot(100 * stroke_line, muscle.push(p, L), color=color, label=f"{p / 1e3:.1f} kPa")
+        sim = rig.stroke_forces(muscle, p, muscle.rest_length_m * (1 + stroke_points))
+        ax.plot(100 * stroke_points, sim, "o", color=color, markersize=4)
+    ax.axhline(0, color="0.6", lw=0.8)
+    ax.set_xlabel("length change, % of resting length")
+    ax.set_ylabel("axial force, N (push +)")
+    ax.set_title(f"{muscle.name}: force-stroke, {muscle.stress.name} law (lines: Eq. 2, dots: MuJoCo rig)")
+    ax.legend(title="gauge pressure", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+# ------------------------------------------------------------------------------------ CLI
+def _pressures(args) -> tuple[float, ...]:
+    if not args.pressures_kPa:
+        return PAPER_PRESSURES_PA
+    bad = [p for p in args.pressures_kPa if not (np.isfinite(p) and p >= 0)]
+    if bad:
+        raise ValueError(f"--pressures-kPa: pressures must be finite and >= 0, got {bad}")
+    return tuple(p * 1e3 for p in args.pressures_kPa)
+
+
+def run_muscle(args) -> int:
+    muscle = load_muscle(args.muscle, args.stress)
+    rows = compare(muscle, _pressures(args))
+    print(format_report(muscle, rows))
+    if args.json:
+        _write_json(Path(args.json), report_dict(muscle, rows))
+    return 0
+
+
+def run_demo(args) -> int:
+    muscle = load_muscle(args.muscle, args.stress)
+    rows = compare(muscle)
+    print(format_report(muscle, rows))
+    out = Path(args.out)
+    figure = force_stroke_figure(muscle, out / f"force_stroke_{muscle.name.lower() or 'muscle'}.png")
+    _write_json(out / "demo.json", report_dict(muscle, rows))
+    print(f"\nfigure: {figure}\ntable:  {out / 'demo.json'}")
+    return 0
+
+
+def _write_json(path: Path, doc: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.replace(path)
+
+
+def register_cli(sub) -> None:
+    p = sub.add_parser(
+        "muscle",
+        help="derived constants; blocked force and free extension, analytic vs MuJoCo",
+        description="Derived constants of a muscle, and per pressure the blocked force (Eq. 9) and "
+        "free extension (Eq. 2 = 0) from the analytic model beside the MuJoCo rig's.",
+    )
+    p.add_argument("muscle", help="preset (FAM1, FAM2) or muscle file (JSON)")
+    p.add_argument("--stress", choices=LAW_NAMES, help="stress law (default: the file's default law)")
+    p.add_argument(
+        "--pressures-kPa", type=float, nargs="+", help="gauge pressures (default: the paper's five)"
+    )
+    p.add_argument("--json", help="write the table as JSON to this file")
+    p.set_defaults(run=run_muscle)
+
+    d = sub.add_parser(
+        "demo",
+        help="the FAM1 table and a force-stroke figure (analytic lines over MuJoCo points)",
+        description="Runs the main job: the analytic vs MuJoCo table for a muscle at the paper's five "
+        "pressures and a figure of its force-stroke curves.",
+    )
+    d.add_argument("--muscle", default="FAM1", help="preset or muscle file (default FAM1)")
+    d.add_argument("--stress", choices=LAW_NAMES, help="stress law (default: the file's default law)")
+    d.add_argument("--out", default="efam_demo", help="output folder (default ./efam_demo)")
+    d.set_defaults(run=run_demo)
