@@ -29,6 +29,7 @@ _REBUILD_HINT = (
 
 _lock = threading.Lock()
 _library: ctypes.CDLL | None = None
+_slot = -1
 
 
 class PluginLoadError(ImportError):
@@ -83,21 +84,28 @@ def _open_library():
     library.efam_muscle_mujoco_header_version.restype = ctypes.c_int
     library.efam_muscle_register.restype = ctypes.c_int
     _check_versions(library, mujoco)
-    if library.efam_muscle_register() < 0:
+    slot = library.efam_muscle_register()
+    if slot < 0:
         raise PluginLoadError(
             f"another plugin named '{PLUGIN_NAME}' is already registered in this process (a second "
             f"build of efam_mujoco?); this one is {path}"
         )
-    return library
+    return library, slot
 
 
 def load() -> str:
     """Register ``efam.muscle`` with MuJoCo (idempotent, thread-safe); returns the library path."""
-    global _library
+    global _library, _slot
     with _lock:
         if _library is None:
-            _library = _open_library()
+            _library, _slot = _open_library()
         return _library._name
+
+
+def plugin_slot() -> int:
+    """MuJoCo's registry slot of efam.muscle (``MjModel.plugin`` holds slots); loads if needed."""
+    load()
+    return _slot
 
 
 def is_loaded() -> bool:
@@ -139,4 +147,5 @@ __all__ = [
     "library_path",
     "load",
     "plugin_config",
+    "plugin_slot",
 ]
