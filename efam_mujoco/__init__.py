@@ -10,7 +10,15 @@ from .plugin import _autoload  # noqa: F401  (registers the efam.muscle plugin w
 from .stress import LAW_NAMES, StressLaw, StressLawError
 
 __all__ = [
-    "Geometry", "Muscle", "MuscleError", "NEUTRAL_BRAID_ANGLE_DEG", "MuscleFileError",
-    "load_muscle", "save_muscle", "LAW_NAMES", "StressLaw", "StressLawError",
+    "Geometry",
+    "Muscle",
+    "MuscleError",
+    "NEUTRAL_BRAID_ANGLE_DEG",
+    "MuscleFileError",
+    "load_muscle",
+    "save_muscle",
+    "LAW_NAMES",
+    "StressLaw",
+    "StressLawError",
 ]
 __version__ = "0.1.0"
