@@ -62,6 +62,7 @@ else:
         "-fexceptions",  # MuJoCo's compiler reports config errors by unwinding through init
         "-ffp-contract=off",  # no fused multiply-add: the same rounding as the Python reference
         "-fno-fast-math",
+        "-fno-math-errno",  # sqrt inlined; values unchanged
         "-fvisibility=hidden",
         "-Wall",
     ]

@@ -139,10 +139,22 @@ def config_xml(muscle: Muscle, indent: str = "") -> str:
     return "\n".join(f'{indent}<config key="{k}" value="{v}"/>' for k, v in plugin_config(muscle).items())
 
 
+def instance_xml(name: str, muscle: Muscle, indent: str = "") -> str:
+    """A named ``<instance>`` for ``<extension><plugin plugin="efam.muscle">``.
+
+    Actuators written ``<plugin instance="NAME" tendon=.../>`` then share it. One instance per
+    distinct muscle is cheaper than one per actuator: MuJoCo visits every plugin instance in
+    several stages of each step, whatever it computes.
+    """
+    body = config_xml(muscle, indent + "  ")
+    return f'{indent}<instance name="{name}">\n{body}\n{indent}</instance>'
+
+
 __all__ = [
     "PLUGIN_NAME",
     "PluginLoadError",
     "config_xml",
+    "instance_xml",
     "is_loaded",
     "library_path",
     "load",
