@@ -23,7 +23,7 @@ from .fit import Eq14, LawFit, Problem, finish_fit
 LINEAR_START = {"E1_Pa": 2.0e6, "E2": 1.0}
 #: Starts of the non-linear coefficients (E1, E2 come from the linear fit).
 NONLINEAR_START = {
-    "polynomial": {"E3_Pa": 0.0, "E4_Pa": 0.0},
+    "polynomial": {"E3_Pa": 1.0e5, "E4_Pa": 1.0e5},
     "exponential_decay": {"E3_Pa": 1.0e5, "E4": 10.0},
     "exponent": {"E3": 0.5, "E4": 1.5},
     "sigmoid": {"E3_Pa": 1.0e5, "E4": 10.0},

@@ -51,19 +51,23 @@ class BlockedForceFit:
 def blocked_points(samples: Samples, rest_length_m: float) -> tuple[np.ndarray, np.ndarray]:
     """(pressure, tension) pairs at the resting length.
 
-    Isobaric strokes: at each level, the force at Delta L = 0 from a straight-line fit over the
-    samples within 2 % of the level's largest length change (the mean of loading and unloading
-    when both pass there). Other data (isometric pressure ramps): every sample held within 0.1 %
-    of the resting length.
+    Isobaric strokes, at each level: the mean force of the samples held at the resting length
+    (within 0.01 % of it) when there are 10 or more (a blocked-force hold before the stroke);
+    otherwise the value at Delta L = 0 of a local quadratic over the samples within 2 % of the
+    level's largest length change (a stroke starting at rest). Other data (isometric pressure
+    ramps): every sample held within 0.1 % of the resting length.
     """
     if samples.isobaric:
         P, F = [], []
         for j, p in enumerate(samples.levels_Pa):
             seg = samples.take(samples.level == j)
             dL = seg.length_m - rest_length_m
-            far = float(np.max(np.abs(dL)))
-            half = max(0.02 * far, 1e-4 * rest_length_m)
-            value = local_value(dL, seg.tension_N, 0.0, half)
+            held = np.abs(dL) <= 1e-4 * rest_length_m
+            if np.count_nonzero(held) >= 10:
+                value = float(np.mean(seg.tension_N[held]))
+            else:
+                half = max(0.02 * float(np.max(np.abs(dL))), 1e-4 * rest_length_m)
+                value = local_value(dL, seg.tension_N, 0.0, half)
             if np.isfinite(value):
                 P.append(p)
                 F.append(value)

@@ -9,10 +9,10 @@ A bench file may hold several pressures and loading and unloading. Fitting needs
 * the paper's Eq. 14 comparison points: at each level the force at ``Delta L = k/n Delta L_max``
   (k = 1..n), where ``Delta L_max`` is the largest length change reached at that level.
 
-Force at a comparison length (stated in docs/calibration.md): on each branch a straight line is
-fitted to the samples within ``2 %`` of ``Delta L_max`` of that length (at least 3 samples), and
-the experimental force is the MEAN of the loading and unloading values (the model has no
-hysteresis, so it is compared with the middle of the loop); a level with one branch uses it.
+Force at a comparison length (stated in docs/calibration.md): on each branch a local quadratic
+(``local_value``) is fitted to the samples within 8 % of ``Delta L_max`` of that length, and the
+experimental force is the MEAN of the loading and unloading values (the model has no hysteresis,
+so it is compared with the middle of the loop); a level with one branch uses that branch.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 from ..recordings import Recording
 
 #: Half-width of the window around a comparison length, as a fraction of Delta L_max.
-WINDOW_FRACTION = 0.02
+WINDOW_FRACTION = 0.08
 #: Strain of the paper's "blocked force" comparison row (Table 3 footnote: eps = +-5e-4).
 BLOCKED_STRAIN = 5e-4
 
@@ -117,15 +117,20 @@ def branches(length_m: np.ndarray, direction: float) -> np.ndarray:
 
 
 def local_value(x: np.ndarray, y: np.ndarray, at: float, half_width: float) -> float:
-    """Straight-line fit of y(x) over |x - at| <= half_width, evaluated at ``at`` (NaN if < 3)."""
+    """Local polynomial fit of y(x) over |x - at| <= half_width, evaluated at ``at``.
+
+    A quadratic with 6 or more samples (a stroke's start or end is one-sided, where a straight
+    line would be biased by the curvature), a straight line with 3-5, NaN with fewer.
+    """
     near = np.abs(x - at) <= half_width
-    if np.count_nonzero(near) < 3:
+    count = np.count_nonzero(near)
+    if count < 3:
         return float("nan")
-    xs, ys = x[near] - at, y[near]
+    xs, ys = (x[near] - at) / half_width, y[near]
     if np.ptp(xs) <= 0:
         return float(np.mean(ys))
-    slope, intercept = np.polyfit(xs, ys, 1)
-    return float(intercept)
+    degree = 2 if count >= 6 and len(np.unique(np.round(xs, 9))) >= 3 else 1
+    return float(np.polyfit(xs, ys, degree)[-1])
 
 
 @dataclass

@@ -39,7 +39,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import lsq_linear, minimize, minimize_scalar
+from scipy.optimize import linprog, lsq_linear, minimize, minimize_scalar
 
 from ..muscle import Muscle
 from ..recordings import Recording
@@ -58,7 +58,7 @@ NONLINEAR = {
 #: Smallest d sigma/d eps accepted for the polynomial law, Pa (a strictly positive margin).
 STABILITY_MARGIN_PA = 1e3
 #: Samples kept per recording for fitting (consecutive samples averaged beyond this).
-MAX_SAMPLES_PER_RECORDING = 800
+MAX_SAMPLES_PER_RECORDING = 300
 OBJECTIVES = ("eq14", "lsq")
 
 
@@ -230,8 +230,11 @@ class _Solution:
 class _LinearSolver:
     """min ||A c - y|| over the linear coefficients (and the dead band) for fixed non-linear ones."""
 
-    def __init__(self, design: Design, law: str, fit_deadband: bool, deadband_hi: float, strain_range):
+    def __init__(
+        self, design: Design, law: str, fit_deadband: bool, deadband_hi: float, strain_range, weights=None
+    ):
         self.d = design
+        self.w = np.ones(len(design)) if weights is None else np.asarray(weights, dtype=float)
         self.law = law
         self.fit_deadband = fit_deadband
         names = linear_params(law)
@@ -258,7 +261,7 @@ class _LinearSolver:
             else:
                 A = A_stress
                 y = d.tension - d.lock - np.maximum(P - deadband, 0.0) * d.g
-            coef = self._bounded_lsq(A[rows], y[rows])
+            coef = self._bounded_lsq(A[rows] * self.w[rows, None], y[rows] * self.w[rows])
             new_deadband = float(coef[-1]) if self.fit_deadband else deadband
             model = A @ coef - y + d.tension  # y = tension - (pressure term + lock)
             new_rows = (model > 0) | (d.tension > 0) if d.tension_only else rows
@@ -270,7 +273,7 @@ class _LinearSolver:
         model = A @ coef - y + d.tension
         if d.tension_only:
             model = np.maximum(model, 0.0)
-        r = model - d.tension
+        r = (model - d.tension) * self.w
         solution.cost = float(r @ r)
         return solution
 
@@ -343,40 +346,72 @@ def _stable_polynomial(R, z, scale, lo, hi, strain_range) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- outer search
+class _Space:
+    """The non-linear coefficients as a unit cube: E4 of the 1-D laws on a log scale (it spans
+    0.5-200), the exponent law's E3 and E4 on a linear one."""
+
+    def __init__(self, law: str):
+        self.names = NONLINEAR[law]
+        box = dict(zip(LAWS[law].params, LAWS[law].search))
+        self.boxes = [box[n] for n in self.names]
+        self.log = len(self.names) == 1
+
+    def values(self, u) -> dict[str, float]:
+        if self.log:
+            (lo, hi), x = self.boxes[0], float(u[0])
+            return {self.names[0]: math.exp(math.log(lo) + x * (math.log(hi) - math.log(lo)))}
+        return {n: b[0] + float(x) * (b[1] - b[0]) for n, b, x in zip(self.names, self.boxes, u)}
+
+    def grid(self) -> list[np.ndarray]:
+        if not self.names:
+            return [np.zeros(0)]
+        if self.log:
+            return [np.array([x]) for x in np.linspace(0.0, 1.0, 25)]
+        axis = np.linspace(0.0, 1.0, 9)
+        return [np.array([a, b]) for a in axis for b in axis]
+
+
 def _search(solver: _LinearSolver, law: str) -> tuple[dict[str, float], _Solution]:
-    names = NONLINEAR[law]
-    if not names:
+    """Least squares over the whole box: a grid of the non-linear coefficients, then refinement."""
+    space = _Space(law)
+    if not space.names:
         return {}, solver.solve({})
-    box = dict(zip(LAWS[law].params, LAWS[law].search))
-    if len(names) == 1:
-        (name,) = names
-        lo, hi = (math.log(v) for v in box[name])
-        grid = np.linspace(lo, hi, 25)
-        costs = [solver.solve({name: math.exp(u)}).cost for u in grid]
-        i = int(np.argmin(costs))
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-        best = minimize_scalar(
-            lambda u: solver.solve({name: math.exp(u)}).cost, bounds=(a, b), method="bounded",
-            options={"xatol": 1e-4},
-        )  # fmt: skip
-        u = float(best.x) if best.fun <= costs[i] else float(grid[i])
-        return {name: math.exp(u)}, solver.solve({name: math.exp(u)})
-    # two non-linear coefficients (the exponent law): grid, then local refinement from the best
-    boxes = [box[n] for n in names]
-    unit = lambda x: {n: b[0] + xi * (b[1] - b[0]) for n, b, xi in zip(names, boxes, x)}  # noqa: E731
-    axis = np.linspace(0.0, 1.0, 9)
-    grid = [(u, v) for u in axis for v in axis]
-    costs = np.array([solver.solve(unit(x)).cost for x in grid])
-    best_x, best_cost = None, math.inf
-    for i in np.argsort(costs)[:3]:
-        result = minimize(
-            lambda x: solver.solve(unit(x)).cost, np.array(grid[i]), method="Nelder-Mead",
-            bounds=[(0.0, 1.0)] * 2, options={"xatol": 1e-5, "fatol": 1e-9 * costs[i], "maxfev": 200},
-        )  # fmt: skip
-        if result.fun < best_cost:
-            best_x, best_cost = result.x, result.fun
-    nonlinear = unit(best_x)
+    grid = space.grid()
+    cost = lambda u: solver.solve(space.values(u)).cost  # noqa: E731
+    costs = np.array([cost(u) for u in grid])
+    order = np.argsort(costs)
+    if len(space.names) == 1:
+        i = int(order[0])
+        a, b = grid[max(i - 1, 0)][0], grid[min(i + 1, len(grid) - 1)][0]
+        best = minimize_scalar(lambda x: cost([x]), bounds=(a, b), method="bounded", options={"xatol": 1e-5})
+        u = np.array([best.x]) if best.fun <= costs[i] else grid[i]
+    else:
+        u, best_cost = grid[int(order[0])], float(costs[order[0]])
+        for i in order[:2]:
+            result = minimize(
+                cost, grid[i], method="Nelder-Mead", bounds=[(0.0, 1.0)] * 2,
+                options={"xatol": 1e-5, "fatol": 1e-9 * costs[i], "maxfev": 150},
+            )  # fmt: skip
+            if result.fun < best_cost:
+                u, best_cost = result.x, float(result.fun)
+    nonlinear = space.values(u)
     return nonlinear, solver.solve(nonlinear)
+
+
+def _eq14_starts(problem: Problem, law: str, eq14: Eq14, deadband_Pa: float, count: int = 2) -> list:
+    """Starts for the Eq. 14 polish that do not come from least squares on all samples: over the
+    same grid, the linear coefficients that fit the comparison points in relative terms (weighted
+    least squares, Eq. 14's weights), ranked by their Eq. 14 error."""
+    solver = _LinearSolver(problem.design("points", deadband_Pa), law, False, deadband_Pa,
+                           problem.strain_range, weights=eq14.weight)  # fmt: skip
+    space = _Space(law)
+    scored = []
+    for u in space.grid():
+        nonlinear = space.values(u)
+        coefficients = _assemble(law, nonlinear, solver.solve(nonlinear).linear)
+        scored.append((eq14(coefficients), coefficients))
+    scored.sort(key=lambda item: item[0])
+    return [c for _, c in scored[:count]]
 
 
 def _assemble(law: str, nonlinear: dict[str, float], linear: np.ndarray) -> tuple[float, ...]:
@@ -409,45 +444,125 @@ def eq14_value(points: ComparisonPoints, rel_pct: np.ndarray) -> float:
 
 
 class Eq14:
-    """Eq. 14 error of a coefficient vector (a large penalty outside bounds or when unstable)."""
+    """Eq. 14 error of a coefficient vector (a large penalty outside bounds or when unstable).
+
+    Evaluated thousands of times by Nelder-Mead, so it avoids building objects: the bounds are
+    checked against ``LAWS[law].bounds`` and the model is the law's basis times its coefficients.
+    """
 
     PENALTY = 1e6
 
     def __init__(self, problem: Problem, law: str, deadband_Pa: float):
-        self.points = problem.points
+        pts = problem.points
+        self.points = pts
         self.design = problem.design("points", deadband_Pa)
         self.law = law
         self.strain_range = problem.strain_range
         self.evaluations = 0
+        self.bounds = LAWS[law].bounds
+        self.params = LAWS[law].params
+        self.linear_index = [self.params.index(p) for p in linear_params(law)]
+        d = self.design
+        P = np.maximum(d.P, 0.0)
+        self.fixed = np.maximum(P - deadband_Pa, 0.0) * d.g + d.lock
+        # Eq. 14 = sum_i weight_i |F_i - model_i| / |F_i|: the mean over levels of the mean over k
+        weight = np.zeros(len(pts.k))
+        used = [j for j in np.unique(pts.level) if np.any((pts.level == j) & (pts.k > 0))]
+        for j in used:
+            at = (pts.level == j) & (pts.k > 0)
+            weight[at] = 1.0 / (len(used) * np.count_nonzero(at))
+        self.weight = 100.0 * weight / np.abs(pts.tension_N)
+
+    def admissible(self, c) -> bool:
+        for value, (lo, hi, lo_open, hi_open) in zip(c, self.bounds):
+            if not math.isfinite(value) or value < lo or value > hi:
+                return False
+            if (lo_open and value == lo) or (hi_open and value == hi):
+                return False
+        if self.law == "polynomial":
+            return _quad_min(c[0], c[2], c[3], self.strain_range) > 0
+        return True
+
+    def model(self, c) -> np.ndarray:
+        d = self.design
+        nonlinear = {p: c[i] for i, p in enumerate(self.params) if p in NONLINEAR[self.law]}
+        P = np.maximum(d.P, 0.0)
+        bz = stress_basis(self.law, nonlinear, d.ez, P)
+        bc = stress_basis(self.law, nonlinear, d.ec, P)
+        force = self.fixed.copy()
+        for i, z, w in zip(self.linear_index, bz, bc):
+            force += c[i] * (z * d.az - w * d.ac)
+        return np.maximum(force, 0.0) if d.tension_only else force
 
     def __call__(self, coefficients) -> float:
         self.evaluations += 1
-        try:
-            stress = StressLaw(self.law, tuple(coefficients))
-            stress.check_stable(*self.strain_range)
-        except StressLawError:
+        c = tuple(float(v) for v in coefficients)
+        if not self.admissible(c):
             return self.PENALTY
-        model = self.design.predict(stress)
-        rel = np.abs(self.points.tension_N - model) / np.abs(self.points.tension_N) * 100.0
-        value = eq14_value(self.points, rel)
-        return value if np.isfinite(value) else self.PENALTY
+        value = float(self.weight @ np.abs(self.points.tension_N - self.model(c)))
+        return value if math.isfinite(value) else self.PENALTY
+
+
+def _eq14_linear_programme(eq14: Eq14, law: str, coefficients) -> tuple[float, ...] | None:
+    """The linear coefficients minimising Eq. 14 exactly, the non-linear ones held.
+
+    min sum_i w_i t_i  s.t.  -t_i <= y_i - A_i c <= t_i, c in the search box, and for the
+    polynomial law E1 + 2 E3 e + 3 E4 e^2 >= margin on a strain grid (plus cuts at the slope's
+    minimum until it holds exactly). None when the model is not linear in c (tension-only).
+    """
+    if eq14.design.tension_only:
+        return None
+    params = LAWS[law].params
+    nonlinear = {p: coefficients[i] for i, p in enumerate(params) if p in NONLINEAR[law]}
+    A = eq14.design.columns(law, nonlinear)
+    y = eq14.points.tension_N - eq14.fixed
+    used = eq14.weight > 0
+    A, y, w = A[used], y[used], eq14.weight[used]
+    m, k = A.shape
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    As = A / scale
+    box = dict(zip(params, LAWS[law].search))
+    bounds = [(box[p][0] * s, box[p][1] * s) for p, s in zip(linear_params(law), scale)] + [(0, None)] * m
+    objective = np.r_[np.zeros(k), w]
+    A_ub = np.block([[As, -np.eye(m)], [-As, -np.eye(m)]])
+    b_ub = np.r_[y, -y]
+    strains = list(np.linspace(*eq14.strain_range, 41)) if law == "polynomial" else []
+    for _ in range(8):
+        rows, rhs = A_ub, b_ub
+        if strains:  # -(E1 + 2 E3 e + 3 E4 e^2) <= -2 margin, on coef = x / scale
+            G = np.array([[1.0, 0.0, 2 * e, 3 * e * e] for e in strains]) / scale
+            rows = np.vstack([A_ub, np.hstack([-G, np.zeros((len(strains), m))])])
+            rhs = np.r_[b_ub, np.full(len(strains), -2 * STABILITY_MARGIN_PA)]
+        result = linprog(objective, A_ub=rows, b_ub=rhs, bounds=bounds, method="highs")
+        if result.status != 0:
+            return None
+        linear = result.x[:k] / scale
+        if law != "polynomial" or _quad_min(*linear[[0, 2, 3]], eq14.strain_range) >= STABILITY_MARGIN_PA:
+            return _assemble(law, nonlinear, linear)
+        strains.append(-linear[2] / (3 * linear[3]))
+    return None
 
 
 def _polish_eq14(eq14: Eq14, start: tuple[float, ...], law: str) -> tuple[tuple[float, ...], float]:
-    """Nelder-Mead on Eq. 14 in coordinates scaled by the start, within the search box."""
+    """Nelder-Mead on Eq. 14 in coordinates scaled by the start, within the search box; restarted
+    from its own result while that still improves (a collapsed simplex is a common NM stall)."""
     box = np.array(LAWS[law].search, dtype=float)
     width = box[:, 1] - box[:, 0]
     scale = np.where(np.abs(start) > 1e-9 * width, np.abs(start), 1e-3 * width)
-    x0 = np.array(start) / scale
-    f0 = eq14(start)
-    result = minimize(
-        lambda x: eq14(tuple(x * scale)), x0, method="Nelder-Mead",
-        bounds=list(zip(box[:, 0] / scale, box[:, 1] / scale)),
-        options={"xatol": 1e-7, "fatol": 1e-7, "maxfev": 400 * len(start), "adaptive": True},
-    )  # fmt: skip
-    if result.fun < f0:
-        return tuple(float(v) for v in result.x * scale), float(result.fun)
-    return start, f0
+    best_x, best_f = np.array(start) / scale, eq14(start)
+    for _ in range(3):
+        result = minimize(
+            lambda x: eq14(x * scale), best_x, method="Nelder-Mead",
+            bounds=list(zip(box[:, 0] / scale, box[:, 1] / scale)),
+            options={"xatol": 1e-6, "fatol": 1e-6, "maxfev": 300 * len(start), "adaptive": True},
+        )  # fmt: skip
+        if not result.fun < best_f - 1e-6:
+            if result.fun < best_f:
+                best_x, best_f = result.x, float(result.fun)
+            break
+        best_x, best_f = result.x, float(result.fun)
+    return tuple(float(v) for v in best_x * scale), best_f
 
 
 # ------------------------------------------------------------------------------- fit_law
@@ -494,7 +609,14 @@ def fit_law(
     evaluations = solver.evaluations
     if objective == "eq14":
         eq14 = Eq14(problem, law, deadband)
-        coefficients, _ = _polish_eq14(eq14, coefficients, law)
+        if NONLINEAR[law]:
+            starts = [coefficients] + _eq14_starts(problem, law, eq14, deadband)
+            coefficients, _ = _polish_eq14(eq14, min(starts, key=eq14), law)
+        # Eq. 14 is a weighted L1 norm, convex in the linear coefficients: a linear programme
+        # gives their exact optimum (for the linear and polynomial laws, the global one).
+        exact = _eq14_linear_programme(eq14, law, coefficients)
+        if exact is not None and eq14(exact) <= eq14(coefficients):
+            coefficients = exact
         evaluations += eq14.evaluations
     return finish_fit(problem, law, coefficients, deadband, objective, start, evaluations)
 
