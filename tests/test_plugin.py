@@ -19,7 +19,7 @@ from mujoco import rollout
 import efam_mujoco
 from efam_mujoco import Muscle, StressLaw, load_muscle
 from efam_mujoco import plugin as efam_plugin
-from efam_mujoco.plugin import PluginLoadError, config_xml, plugin_config
+from efam_mujoco.plugin import PluginLoadError, config_xml, instance_xml, plugin_config
 
 TABLE4_LAWS = ("linear", "polynomial", "exponential_decay", "exponent")
 PSI = 6894.757
@@ -158,10 +158,9 @@ def test_force_at_rest_length_is_gaylord_blocked_force():
 
 def test_one_instance_drives_several_actuators():
     muscle = load_muscle("FAM2")
-    config = "\n".join(f'<config key="{k}" value="{v}"/>' for k, v in plugin_config(muscle).items())
     xml = f"""
 <mujoco>
-  <extension><plugin plugin="efam.muscle"><instance name="fam2">{config}</instance></plugin></extension>
+  <extension><plugin plugin="efam.muscle">{instance_xml("fam2", muscle)}</plugin></extension>
   <worldbody>
     <site name="o1" pos="0 0 0"/><site name="o2" pos="1 0 0"/>
     <body pos="0 0 0.17"><joint type="slide" axis="0 0 1"/><geom size="0.01"/><site name="e1"/></body>
