@@ -184,6 +184,18 @@ def test_one_instance_drives_several_actuators():
     assert data.actuator_force[0] != data.actuator_force[1]
 
 
+def _instance_only_xml(muscle_instance: str) -> str:
+    return f"""<mujoco><extension><plugin plugin="efam.muscle">{muscle_instance}</plugin></extension>
+  <worldbody><body><joint type="slide"/><geom size="0.01"/></body></worldbody></mujoco>"""
+
+
+def test_declared_instance_without_actuators_compiles_but_is_validated():
+    mujoco.MjModel.from_xml_string(_instance_only_xml(instance_xml("spare", load_muscle("FAM1"))))
+    bad = instance_xml("spare", load_muscle("FAM1")).replace('key="E4" value="', 'key="E4" value="-')
+    with pytest.raises(ValueError, match="instance 'spare'.*'E4'"):
+        mujoco.MjModel.from_xml_string(_instance_only_xml(bad))
+
+
 # ---------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize("bad_ctrl", [math.nan, math.inf, -math.inf])
 def test_non_finite_control_gives_finite_zero_force(bad_ctrl):

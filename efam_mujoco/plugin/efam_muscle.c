@@ -249,7 +249,7 @@ static double brent_root(const FillCubic* g, double a, double b, double xtol, do
 
 // ---------------------------------------------------------------------------- config errors
 
-// The actuator name (or number) an instance drives, for messages.
+// Who the message is about: the first actuator the instance drives, else the instance itself.
 static const char* instance_label(const mjModel* m, int instance, char* buf, size_t size) {
   for (int i = 0; i < m->nactuator; i++) {
     if (m->actuator_plugin[i] == instance) {
@@ -262,7 +262,12 @@ static const char* instance_label(const mjModel* m, int instance, char* buf, siz
       return buf;
     }
   }
-  snprintf(buf, size, "plugin instance %d", instance);
+  const char* name = m->names + m->name_pluginadr[instance];
+  if (name[0]) {
+    snprintf(buf, size, "instance '%s'", name);
+  } else {
+    snprintf(buf, size, "plugin instance %d", instance);
+  }
   return buf;
 }
 
@@ -490,10 +495,7 @@ static void check_actuators(const mjModel* m, int instance) {
 // Read, validate and derive everything before allocating, so that an error (which does not
 // return) leaks nothing.
 static Muscle* muscle_create(const mjModel* m, int instance) {
-  int nact = actuator_count(m, instance);
-  if (nact == 0) {
-    CONFIG_ERROR(m, instance, "no actuator uses this plugin instance%s", "");
-  }
+  int nact = actuator_count(m, instance);  // may be 0: a declared muscle no actuator uses yet
   check_actuators(m, instance);
 
   Muscle mu;
