@@ -7,7 +7,7 @@ import importlib
 import sys
 
 # Modules exposing ``register_cli(subparsers)``; each adds one subcommand.
-COMMAND_MODULES = ("efam_mujoco.report", "efam_mujoco.viewer")
+COMMAND_MODULES = ("efam_mujoco.report", "efam_mujoco.viewer", "efam_mujoco.calibrate")
 
 
 def build_parser() -> argparse.ArgumentParser:
