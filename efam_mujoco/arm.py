@@ -8,10 +8,10 @@ The MuJoCo model (:func:`build_spec`):
 
 * bodies: a fixed ``base`` plate, then per section D disks ``s{j}d{k}`` (k = 1..D, the last one
   is the section's end plate); each disk is a child of the previous one.
-* joints, per disk: slide ``ext_a`` along the previous disk's axis, the two bending hinges
-  (``bend_x``/``bend_y``, anchored between the disks), slide ``ext_b`` along the new axis. The
-  hinge order alternates x-y / y-x from disk to disk, so that every pair of disks turns about an
-  axis in the disk plane: no twist. No shear: the two slides of a link are equal.
+* joints, per disk: slide ``ext_a`` along the previous disk's axis, the bending hinges
+  ``bend_x1``, ``bend_y``, ``bend_x2`` (anchored midway between the disks), slide ``ext_b``
+  along the new axis. With equal x hinges Rx(a) Ry(b) Rx(a) is a pure bend (axis in the disk
+  plane): no twist. With equal slides the disks sit at the tangent points of the arc: no shear.
 * constant curvature: equality constraints make every link of a section take the same
   extension and bend as its first link, so a section is a circular arc (the muscles slide
   through the disks and carry one force along their whole length, and without this coupling the
@@ -52,6 +52,8 @@ PAPER_PRESSURES_PA = tuple(p * PSI for p in (15, 30, 45, 60, 75))
 #: highest pressure the paper characterised the muscles at (75 psi), Pa
 MAX_TESTED_PRESSURE_PA = 75 * PSI
 
+#: largest bend of one link (between two disks)
+HINGE_LIMIT_RAD = math.radians(60.0)
 #: equality data of q1 = q2 (polycoef 0 1 0 0 0; slot 10 as the MJCF parser fills it)
 JOINT_COUPLING_DATA = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]
 #: the constant-curvature couplings carry the gravity moments along a section: stiff and hard
@@ -360,7 +362,7 @@ def build_spec(arm: ArmSpec) -> mujoco.MjSpec:
                 inertias[j - 1][k],
                 inertias[j][0] if k == section.disks and j < len(arm.sections) else None,
             )
-            _add_link_joints(body, f"s{j}d{k}", link, k, arm, section, mass)
+            _add_link_joints(body, f"s{j}d{k}", link, arm, section, *mass)
             end_plate = k == section.disks
             _add_plate_geom(
                 body,
@@ -421,19 +423,26 @@ def _set_inertia(body, disk: _Inertia, next_base: _Inertia | None):
     body.mass = acc.mass
     body.ipos = com.tolist()
     body.fullinertia = [tensor[0, 0], tensor[1, 1], tensor[2, 2], tensor[0, 1], tensor[0, 2], tensor[1, 2]]
-    return acc.mass
+    return acc.mass, float(tensor[0, 0])
 
 
-def _add_link_joints(body, name, link, k, arm, section, disk_mass):
-    """slide, two hinges anchored mid-link (order alternating with k), slide."""
+def _add_link_joints(body, name, link, arm, section, disk_mass, disk_inertia_xx):
+    """slide ``ext_a``; hinges ``bend_x1``, ``bend_y``, ``bend_x2`` anchored mid-link; slide
+    ``ext_b``. With bend_x1 = bend_x2 the rotation Rx(a) Ry(b) Rx(a) is a pure bend (its axis
+    lies in the disk plane for any a, b), so the disks stay on a circular arc without twist."""
     D = section.disks
-    slide_damping = 2 * D * arm.axial_damping_N_s_per_m  # 2D slides share the section's extension
-    hinge_damping = D * arm.bend_damping_N_m_s_per_rad  # D hinges (per axis) share its bend
+    # spread the section's damping so that the section sees the given values: 2D slides share
+    # the extension, 2D x hinges and D y hinges share the bend about x and y
+    slide_damping = 2 * D * arm.axial_damping_N_s_per_m
+    hinge_damping = {"x1": 2 * D * arm.bend_damping_N_m_s_per_rad, "y": D * arm.bend_damping_N_m_s_per_rad}
+    hinge_damping["x2"] = hinge_damping["x1"]
     slide_range = [-0.4 * link, 2.0 * link]  # link length from 0.2 to 5 rest spacings
-    hinge_limit = math.radians(60.0)
-    # a straight link's two slides move the disk the same way: the mass matrix is singular there
-    # without a little armature (1 % of the disk's mass, negligible against the arm's inertia)
+    hinge_limit = {"x1": HINGE_LIMIT_RAD / 2, "y": HINGE_LIMIT_RAD, "x2": HINGE_LIMIT_RAD / 2}
+    # a straight link's two slides (and, unbent about y, its two x hinges) move the disk the same
+    # way: the mass matrix is singular there without a little armature (1 % of the disk's mass and
+    # of its inertia about the hinge, negligible against the arm's inertia)
     slide_armature = 0.01 * disk_mass
+    hinge_armature = 0.01 * (disk_inertia_xx + disk_mass * (link / 2) ** 2)
 
     def slide(suffix):
         body.add_joint(
@@ -442,27 +451,30 @@ def _add_link_joints(body, name, link, k, arm, section, disk_mass):
             armature=slide_armature,
         )  # fmt: skip
 
-    def hinge(axis_name, axis):
+    def hinge(suffix, axis):
         body.add_joint(
-            name=f"{name}_bend_{axis_name}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
-            pos=[0, 0, -link / 2], damping=hinge_damping,
-            limited=mujoco.mjtLimited.mjLIMITED_TRUE, range=[-hinge_limit, hinge_limit],
+            name=f"{name}_bend_{suffix}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
+            pos=[0, 0, -link / 2], damping=hinge_damping[suffix], limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+            range=[-hinge_limit[suffix], hinge_limit[suffix]], armature=hinge_armature if suffix != "y" else 0.0,
         )  # fmt: skip
 
     slide("ext_a")
-    hinges = [("x", [1, 0, 0]), ("y", [0, 1, 0])]
-    for axis_name, axis in hinges if k % 2 else hinges[::-1]:
-        hinge(axis_name, axis)
+    hinge("x1", [1, 0, 0])
+    hinge("y", [0, 1, 0])
+    hinge("x2", [1, 0, 0])
     slide("ext_b")
 
 
 def _add_cc_equalities(spec, j, section):
-    """Every link of section j extends and bends like its first link (constant curvature)."""
+    """Every link of section j extends and bends like its first link (constant curvature), the
+    two slides of a link are equal (no shear), and so are its two x hinges (no twist)."""
     first = f"s{j}d1"
-    pairs = [(f"s{j}d1_ext_b", f"{first}_ext_a")]
-    for k in range(2, section.disks + 1):
-        pairs += [(f"s{j}d{k}_{q}", f"{first}_{q}") for q in ("ext_a", "bend_x", "bend_y")]
-        pairs.append((f"s{j}d{k}_ext_b", f"{first}_ext_a"))
+    pairs = []
+    for k in range(1, section.disks + 1):
+        disk = f"s{j}d{k}"
+        if k > 1:
+            pairs += [(f"{disk}_{q}", f"{first}_{q}") for q in ("ext_a", "bend_x1", "bend_y")]
+        pairs += [(f"{disk}_ext_b", f"{first}_ext_a"), (f"{disk}_bend_x2", f"{first}_bend_x1")]
     for follower, leader in pairs:
         spec.add_equality(
             type=mujoco.mjtEq.mjEQ_JOINT, name1=follower, name2=leader, objtype=mujoco.mjtObj.mjOBJ_JOINT,
