@@ -324,9 +324,16 @@ def point_masses(arm: ArmSpec) -> list[PointMass]:
 _MUSCLE_RGBA = ((0.85, 0.33, 0.1, 1), (0.1, 0.45, 0.75, 1), (0.2, 0.6, 0.25, 1), (0.55, 0.3, 0.65, 1))
 
 
-def build_spec(arm: ArmSpec) -> mujoco.MjSpec:
+def build_spec(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjSpec:
     """The arm as an :class:`mujoco.MjSpec` (compile with ``spec.compile()`` after
-    ``efam_mujoco.plugin.load()``; :func:`build_model` does both)."""
+    ``efam_mujoco.plugin.load()``; :func:`build_model` does both).
+
+    ``muscles="affine"`` drives the tendons with MuJoCo's built-in affine actuators instead: the
+    muscle model linearised about its free length at half the pressure range. Same arm, same
+    pressure lag; a speed reference for the plugin, not a muscle model.
+    """
+    if muscles not in ("plugin", "affine"):
+        raise ValueError(f"muscles must be 'plugin' or 'affine', got {muscles!r}")
     spec = mujoco.MjSpec()
     spec.modelname = arm.name
     spec.compiler.degree = False  # every angle below is in radians
@@ -372,7 +379,7 @@ def build_spec(arm: ArmSpec) -> mujoco.MjSpec:
             )
             parent, parent_name = body, body.name
             disks.append(body.name)
-        _add_muscles(spec, j, section, disks, arm)
+        _add_muscles(spec, j, section, disks, arm, muscles == "affine")
         _add_cc_equalities(spec, j, section)
     parent.add_site(name="tip", size=[0.006, 0, 0], rgba=[0.9, 0.1, 0.1, 1])
     if arm.payload_kg > 0:
@@ -482,7 +489,7 @@ def _add_cc_equalities(spec, j, section):
         )  # fmt: skip
 
 
-def _add_muscles(spec, j, section, disks, arm):
+def _add_muscles(spec, j, section, disks, arm, affine=False):
     for i, (muscle, angle) in enumerate(zip(section.muscles, section.angles_rad)):
         name = f"s{j}m{i + 1}"
         xy = [section.radius_m * math.cos(angle), section.radius_m * math.sin(angle), 0.0]
@@ -491,8 +498,6 @@ def _add_muscles(spec, j, section, disks, arm):
             site = f"{name}_k{k}"
             spec.body(disk).add_site(name=site, pos=xy, size=[0.002, 0, 0], group=3)
             tendon.wrap_site(site)
-        instance = spec.add_plugin(name=f"{name}_muscle", plugin_name=plugin.PLUGIN_NAME, active=True)
-        instance.config = plugin.plugin_config(muscle)
         actuator = spec.add_actuator(
             name=name, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=name,
             ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE, ctrlrange=[0.0, arm.max_pressure_Pa],
@@ -501,7 +506,25 @@ def _add_muscles(spec, j, section, disks, arm):
             actuator.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
             actuator.dynprm[0] = arm.pressure_tau_s
             actuator.actdim = 1
-        actuator.plugin = instance
+        if affine:
+            _make_affine(actuator, muscle, arm.max_pressure_Pa / 2)
+        else:
+            instance = spec.add_plugin(name=f"{name}_muscle", plugin_name=plugin.PLUGIN_NAME, active=True)
+            instance.config = plugin.plugin_config(muscle)
+            actuator.plugin = instance
+
+
+def _make_affine(actuator, muscle: Muscle, pressure_Pa: float):
+    """force = gain p + b0 + b1 L: the tangent of push(P, L) at (pressure_Pa, free length)."""
+    length = muscle.free_length(pressure_Pa)
+    dp, dl = 1e-3 * pressure_Pa, 1e-6
+    gain = (muscle.push(pressure_Pa + dp, length) - muscle.push(pressure_Pa - dp, length)) / (2 * dp)
+    slope = (muscle.push(pressure_Pa, length + dl) - muscle.push(pressure_Pa, length - dl)) / (2 * dl)
+    actuator.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+    actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    actuator.gainprm[0] = gain
+    actuator.biasprm[0] = -gain * pressure_Pa - slope * length
+    actuator.biasprm[1] = slope
 
 
 def _add_sensors(spec, arm):
@@ -522,9 +545,9 @@ def _add_sensors(spec, arm):
             )  # fmt: skip
 
 
-def build_model(arm: ArmSpec) -> mujoco.MjModel:
+def build_model(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjModel:
     plugin.load()
-    return build_spec(arm).compile()
+    return build_spec(arm, muscles).compile()
 
 
 def arm_xml(arm: ArmSpec) -> str:
