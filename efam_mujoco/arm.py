@@ -347,9 +347,13 @@ def build_spec(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjSpec:
     world = spec.worldbody
     world.add_light(pos=[0.4, -0.4, 1.2], dir=[-0.3, 0.3, -1.0], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
     total = sum(s.rest_length_m for s in arm.sections)
+    # a side view centred on the arm at about 1.5x its resting length
+    axis = np.zeros(9)
+    mujoco.mju_quat2Mat(axis, np.array(ORIENTATIONS[arm.orientation]))
+    centre = axis.reshape(3, 3)[:, 2] * 0.75 * total
     world.add_camera(
         name="side",
-        pos=[0.0, -3.2 * total, 0.0],
+        pos=(centre + [0.0, -4.0 * total, 0.0]).tolist(),
         xyaxes=[1, 0, 0, 0, 0, 1],
         mode=mujoco.mjtCamLight.mjCAMLIGHT_FIXED,
     )
