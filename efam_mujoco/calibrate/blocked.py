@@ -11,10 +11,11 @@ carries no force, so the fitted model is the hinge ``a max(P - P_db, 0)``; with 
 above the dead band (the paper's five pressures) that is exactly the paper's linear fit and zero
 crossing.
 
-Outliers (the paper drops FAM2's 413.7 kPa point by eye): a point is rejected when its residual
-exceeds 4 robust standard deviations (1.4826 x the median absolute deviation) of the residuals
-AND 1 % of the largest blocked force; the line is refitted without it; at most a third of the
-points are ever rejected.
+Outliers (the paper drops FAM2's 413.7 kPa point by eye): with few points, a point is rejected
+when its residual from the line fitted to the OTHER points exceeds 4 times their residual standard
+deviation and 1 % of the largest blocked force (the worst first, one at a time); with many points
+(a pressure ramp), residuals beyond 4 robust standard deviations (1.4826 x the median absolute
+deviation) and 1 % are dropped. At most a third of the points are ever rejected.
 """
 
 from __future__ import annotations
@@ -85,23 +86,7 @@ def fit_blocked(pressure_Pa, tension_N, rest_diameter_m: float | None = None) ->
             "blocked force: need the force at the resting length at two or more pressures "
             f"(got {len(P)} point(s)); record a stroke that starts at the resting length"
         )
-    inlier = np.ones(len(P), dtype=bool)
-    max_rejected = len(P) // 3
-    for _ in range(4):
-        deadband, slope = _hinge(P[inlier], F[inlier])
-        residual = F - slope * np.maximum(P - deadband, 0.0)
-        active = inlier & (P > deadband)
-        centre = np.median(residual[active]) if active.any() else 0.0
-        sigma = 1.4826 * np.median(np.abs(residual[active] - centre)) if active.any() else 0.0
-        limit = max(OUTLIER_SIGMAS * sigma, OUTLIER_FLOOR * np.max(np.abs(F)))
-        worst = np.argsort(-np.abs(residual))
-        new = np.ones(len(P), dtype=bool)
-        for i in worst[:max_rejected]:
-            if abs(residual[i]) > limit:
-                new[i] = False
-        if np.array_equal(new, inlier):
-            break
-        inlier = new
+    inlier = _reject_outliers(P, F)
     deadband, slope = _hinge(P[inlier], F[inlier])
     residual = F - slope * np.maximum(P - deadband, 0.0)
     fit = BlockedForceFit(
@@ -112,6 +97,44 @@ def fit_blocked(pressure_Pa, tension_N, rest_diameter_m: float | None = None) ->
         fit.rest_diameter_m = rest_diameter_m
         fit.theta_rest_deg = braid_angle_from_slope(slope, rest_diameter_m)
     return fit
+
+
+def _reject_outliers(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Inlier mask. Few points (the paper's five pressures): a point is judged by its residual
+    from the line fitted WITHOUT it (so it cannot pull the line towards itself) against the
+    scatter of the others; many points (a pressure ramp): residuals against 1.4826 x their median
+    absolute deviation. Either way the residual must also exceed 1 % of the largest force."""
+    inlier = np.ones(len(P), dtype=bool)
+    floor = OUTLIER_FLOOR * float(np.max(np.abs(F)))
+    for _ in range(len(P) // 3):
+        idx = np.nonzero(inlier)[0]
+        if len(idx) < 4:
+            break
+        if len(idx) <= 50:
+            scores = []
+            for i in idx:
+                others = idx[idx != i]
+                d, a = _hinge(P[others], F[others])
+                r_others = F[others] - a * np.maximum(P[others] - d, 0.0)
+                scale = math.sqrt(float(r_others @ r_others) / max(len(others) - 2, 1))
+                r_i = abs(F[i] - a * max(P[i] - d, 0.0))
+                scores.append((r_i / max(scale, 1e-12), r_i, scale, i))
+            score, r_i, scale, worst = max(scores)
+            reject = r_i > max(OUTLIER_SIGMAS * scale, floor)
+        else:
+            d, a = _hinge(P[idx], F[idx])
+            residual = F - a * np.maximum(P - d, 0.0)
+            sigma = 1.4826 * float(np.median(np.abs(residual[idx] - np.median(residual[idx]))))
+            limit = max(OUTLIER_SIGMAS * sigma, floor)
+            bad = idx[np.abs(residual[idx]) > limit]
+            if len(bad) == 0 or len(bad) > len(P) // 3:
+                break
+            inlier[bad] = False
+            continue
+        if not reject:
+            break
+        inlier[worst] = False
+    return inlier
 
 
 def braid_angle_from_slope(slope_N_per_Pa: float, rest_diameter_m: float) -> float:

@@ -23,8 +23,9 @@ strain, so stability over the muscle's whole strain range is a set of linear ine
 exactly in the linear solve (cutting planes at the slope's minimum until it is positive).
 
 A slack tension-only muscle (``muscle.tension_only``) carries ``max(F, 0)``: samples the model
-calls slack and the data shows slack are left out of the linear solve, the rest kept (an active
-set iterated to a fixed point), and the reported error uses the clipped model.
+calls slack are left out of the linear solve unless the data there is clearly taut (above 5 % of
+the largest force), the rest kept (an active set iterated to a fixed point), and the reported
+error uses the clipped model.
 
 ``objective="eq14"`` (default when the data are isobaric strokes) then minimises the paper's
 Eq. 14 error itself, with Nelder-Mead over all coefficients started from the least-squares
@@ -252,6 +253,9 @@ class _LinearSolver:
         deadband = d.deadband_Pa
         rows = np.ones(len(d), dtype=bool)
         P = np.maximum(d.P, 0.0)
+        # A sample the model calls slack only pulls the model up when the data is clearly taut (5 % of
+        # the largest force), so noise around zero in a slack stretch does not bias the fit.
+        taut = 0.05 * float(np.max(np.abs(d.tension), initial=0.0))
         solution = None
         for _ in range(12):
             above = P > deadband
@@ -264,7 +268,7 @@ class _LinearSolver:
             coef = self._bounded_lsq(A[rows] * self.w[rows, None], y[rows] * self.w[rows])
             new_deadband = float(coef[-1]) if self.fit_deadband else deadband
             model = A @ coef - y + d.tension  # y = tension - (pressure term + lock)
-            new_rows = (model > 0) | (d.tension > 0) if d.tension_only else rows
+            new_rows = (model > 0) | (d.tension > taut) if d.tension_only else rows
             new_above = P > new_deadband
             solution = _Solution(coef[: self.k], new_deadband, 0.0)
             if np.array_equal(new_rows, rows) and np.array_equal(new_above, above):
