@@ -625,17 +625,35 @@ def write_models(directory: Path = MODELS_DIR) -> list[Path]:
     return written
 
 
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--write-models", action="store_true", help="regenerate models/arm_*.xml from the builder"
+    )
+    parser.add_argument("--models-dir", type=Path, default=MODELS_DIR, help="where to write them")
+
+
+def _run(args) -> int:
+    if not args.write_models:
+        print("nothing to do: pass --write-models", file=sys.stderr)
+        return 2
+    for path in write_models(args.models_dir):
+        print(path)
+    return 0
+
+
+def register_cli(subparsers) -> None:
+    """``efam arm --write-models`` (for efam_mujoco.cli.COMMAND_MODULES)."""
+    parser = subparsers.add_parser(
+        "arm", help="EFAM continuum arm models", description=__doc__.splitlines()[0]
+    )
+    _add_arguments(parser)
+    parser.set_defaults(run=_run)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m efam_mujoco.arm", description=__doc__.splitlines()[0])
-    parser.add_argument("--write-models", action="store_true", help="regenerate models/arm_*.xml")
-    parser.add_argument("--models-dir", type=Path, default=MODELS_DIR)
-    args = parser.parse_args(argv)
-    if args.write_models:
-        for path in write_models(args.models_dir):
-            print(path)
-    else:
-        parser.print_help()
-    return 0
+    _add_arguments(parser)
+    return _run(parser.parse_args(argv))
 
 
 if __name__ == "__main__":

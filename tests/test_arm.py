@@ -270,3 +270,24 @@ def test_gravity_pressure_steps_stay_finite(orientation, payload_kg):
         assert np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
         assert np.all(np.isfinite(data.sensordata))
         assert warnings(data) == {}, f"tau={tau}: {warnings(data)}"
+
+
+def test_affine_reference_is_the_muscle_tangent():
+    """The bench's built-in actuators: the muscle model's tangent at half the pressure range and
+    the free length there (zero force, the model's slopes in pressure and length)."""
+    spec = arm.arm_1x3(pressure_tau_s=0.0)
+    model = arm.build_model(spec, muscles="affine")
+    p0 = spec.max_pressure_Pa / 2
+    l0 = FAM1.free_length(p0)
+    gain, bias0, bias1 = (
+        model.actuator_gainprm[0, 0],
+        model.actuator_biasprm[0, 0],
+        model.actuator_biasprm[0, 1],
+    )
+    assert gain * p0 + bias0 + bias1 * l0 == pytest.approx(0.0, abs=1e-6)
+    assert gain == pytest.approx(
+        (FAM1.push(p0 * 1.01, l0) - FAM1.push(p0 * 0.99, l0)) / (0.02 * p0), rel=1e-3
+    )
+    assert bias1 == pytest.approx((FAM1.push(p0, l0 + 1e-4) - FAM1.push(p0, l0 - 1e-4)) / 2e-4, rel=1e-3)
+    with pytest.raises(ValueError, match="muscles must be"):
+        arm.build_spec(spec, muscles="python")
