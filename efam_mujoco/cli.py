@@ -7,7 +7,12 @@ import importlib
 import sys
 
 # Modules exposing ``register_cli(subparsers)``; each adds one subcommand.
-COMMAND_MODULES = ("efam_mujoco.report", "efam_mujoco.viewer", "efam_mujoco.calibrate")
+COMMAND_MODULES = (
+    "efam_mujoco.report",
+    "efam_mujoco.viewer",
+    "efam_mujoco.arm",
+    "efam_mujoco.calibrate",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
