@@ -12,6 +12,7 @@ COMMAND_MODULES = (
     "efam_mujoco.viewer",
     "efam_mujoco.arm",
     "efam_mujoco.calibrate",
+    "efam_mujoco.diagnose",
 )
 
 

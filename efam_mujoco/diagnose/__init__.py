@@ -1,0 +1,216 @@
+"""Sim vs real at the muscle level: locate the mismatch, name the missing physics, model it.
+
+``diagnose(recordings, muscle)`` (see docs/diagnosis.md):
+
+1. re-fits the model's own parameters (stress law, dead band, braid angle, resting diameter,
+   bladder volume; ``model.refit``) and replays the recorded length and pressure through it;
+2. locates the residual above the noise floor by pressure, strain, direction, rate, dwell, cycle
+   number and time (``locate``);
+3. fits every candidate of the library (``effects.LIBRARY``) jointly with small corrections of
+   the model's parameters, scores it on held-out cycles and by BIC, keeps the best one when it
+   pays, then a second one only if that still pays (``select``);
+4. reports the located mismatch, the named effects with fitted parameters and equations, RMS
+   before and after, in-sample and held out (``report``).
+
+The identified effects switch on in simulation with ``effects.EffectModel`` (Python) or the
+plugin configuration ``report.plugin_config``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..muscle import Muscle
+from ..recordings import Recording
+from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
+from .locate import locate
+from .model import Refit, linearise, refit
+from .segment import Labels, label
+from .select import Engine, Fit, pays, search
+
+__all__ = [
+    "Diagnosis", "diagnose", "register_cli", "EffectModel", "apply", "LIBRARY", "EFFECT_NAMES",
+]  # fmt: skip
+
+
+@dataclass
+class Diagnosis:
+    """What ``diagnose`` found. ``effects`` are ordered most important first (empty: none)."""
+
+    effects: list[dict]
+    rms_before_N: float
+    rms_after_N: float
+    heldout_rms_before_N: float
+    heldout_rms_after_N: float
+    noise_N: float
+    located: dict
+    candidates: list[dict]
+    refit: Refit
+    muscle_before: Muscle
+    muscle_after: Muscle
+    seconds: float
+    n_samples: int
+    # replay arrays (concatenated recordings) for figures
+    ctx: Context = field(repr=False, default=None)
+    labels: Labels = field(repr=False, default=None)
+    force: np.ndarray = field(repr=False, default=None)
+    predicted_before: np.ndarray = field(repr=False, default=None)
+    predicted_after: np.ndarray = field(repr=False, default=None)
+    sources: list[str] = field(default_factory=list)
+
+    @property
+    def names(self) -> list[str]:
+        return [e["name"] for e in self.effects]
+
+    @property
+    def model(self) -> EffectModel:
+        """The re-fitted muscle with the identified effects switched on."""
+        return EffectModel(self.muscle_after, [(e["name"], e["parameters"]) for e in self.effects])
+
+    def to_json(self) -> dict:
+        return {
+            "effects": [{k: e[k] for k in _EFFECT_KEYS} for e in self.effects],
+            "rms_before_N": self.rms_before_N,
+            "rms_after_N": self.rms_after_N,
+            "heldout_rms_before_N": self.heldout_rms_before_N,
+            "heldout_rms_after_N": self.heldout_rms_after_N,
+            "noise_N": self.noise_N,
+            "located": _jsonable(self.located),
+            "candidates": self.candidates,
+            "refit": {
+                "law": self.refit.law,
+                "rms_by_law_N": self.refit.by_law,
+                "muscle": _constants(self.muscle_before),
+            },
+            "n_samples": self.n_samples,
+            "seconds": self.seconds,
+            "sources": self.sources,
+        }
+
+
+_EFFECT_KEYS = (
+    "name", "parameters", "heldout_rms_before_N", "heldout_rms_after_N", "equation", "summary",
+    "delta_bic", "identifiable",
+)  # fmt: skip
+
+
+def _constants(m: Muscle) -> dict:
+    return {
+        "theta_rest_deg": m.theta_rest_deg,
+        "rest_diameter_m": m.rest_diameter_m,
+        "bladder_volume_m3": m.bladder_volume_m3,
+        "deadband_kPa": m.deadband_Pa / 1e3,
+        "law": m.stress.name,
+        "coefficients": m.stress.to_dict(),
+    }
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def diagnose(
+    recordings: list[Recording] | Recording,
+    muscle: Muscle,
+    *,
+    candidates: tuple[str, ...] = EFFECT_NAMES,
+    laws=None,
+    max_effects: int = 2,
+) -> Diagnosis:
+    """Diagnose the mismatch between ``muscle`` (its geometry is the starting point; its law and
+    dead band are re-fitted) and force-length-pressure ``recordings``."""
+    start = time.perf_counter()
+    recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
+    if not recordings:
+        raise ValueError("diagnose: no recordings")
+    for r in recordings:
+        if len(r) < 50:
+            raise ValueError(f"{r.meta.get('source', 'recording')}: too few samples to diagnose ({len(r)})")
+    for name in candidates:
+        get(name)
+    fitted = refit(muscle, recordings) if laws is None else refit(muscle, recordings, laws)
+    ctx = Context.from_recordings(recordings, fitted.muscle)
+    labels = label(ctx.t, ctx.x, ctx.P, ctx.starts)
+    lin = linearise(fitted.muscle, ctx.P, ctx.L, muscle)
+    force = np.concatenate([r.force_N for r in recordings])
+    engine = Engine(ctx, lin, force, labels)
+    noise, base, kept, singles, notes = search(engine, tuple(candidates), max_effects)
+    residual = force - base.prediction
+    located = locate(ctx, labels, residual, noise)
+
+    muscle_before = lin.muscle_for(base.du)
+    predicted_before = muscle_before.push(ctx.P, ctx.L)
+    final = kept[-1] if kept else base
+    muscle_after = lin.muscle_for(final.du)
+    found = _found(kept, base, final, noise, ctx.n)
+    after_model = EffectModel(muscle_after, [(e["name"], e["parameters"]) for e in found])
+    predicted_after = np.concatenate([after_model.push_recording(r) for r in recordings])
+    rms = lambda r: float(np.sqrt(np.mean(r**2)))  # noqa: E731
+    table = []
+    for name, fit in sorted(singles.items(), key=lambda kv: kv[1].heldout_rms):
+        info = notes.get(name, {})
+        table.append({
+            "name": name, "heldout_rms_N": fit.heldout_rms, "rms_N": math.sqrt(fit.rss / ctx.n),
+            "delta_bic": info.get("delta_bic"), "heldout_gain": info.get("heldout_gain"),
+            "excess_cut": info.get("excess_cut"), "parameters": fit.values[name],
+        })  # fmt: skip
+    return Diagnosis(
+        effects=found,
+        rms_before_N=rms(force - predicted_before),
+        rms_after_N=rms(force - predicted_after),
+        heldout_rms_before_N=base.heldout_rms,
+        heldout_rms_after_N=final.heldout_rms,
+        noise_N=noise,
+        located=located,
+        candidates=table,
+        refit=fitted,
+        muscle_before=muscle_before,
+        muscle_after=muscle_after,
+        seconds=time.perf_counter() - start,
+        n_samples=ctx.n,
+        ctx=ctx, labels=labels, force=force,
+        predicted_before=predicted_before, predicted_after=predicted_after,
+        sources=[str(r.meta.get("source", "")) for r in recordings],
+    )  # fmt: skip
+
+
+def _found(kept: list[Fit], base: Fit, final: Fit, noise: float, n: int) -> list[dict]:
+    """The kept effects, most important first, each with the held-out RMS it takes away."""
+    out = []
+    previous = base
+    for fit in kept:
+        name = fit.names[-1]
+        effect = get(name)
+        values = {p.key: _clean(final.values[name][p.key], p) for p in effect.params}
+        _, info = pays(fit, previous, noise, n)
+        out.append({
+            "name": name, "summary": effect.summary, "equation": effect.equation,
+            "parameters": values, "identifiable": fit.identifiable[name],
+            "heldout_rms_before_N": previous.heldout_rms, "heldout_rms_after_N": fit.heldout_rms,
+            "delta_bic": info["delta_bic"],
+        })  # fmt: skip
+        previous = fit
+    return out
+
+
+def _clean(value: float, p) -> float:
+    """A fitted value inside its bounds (the bounded solve can leave it 1e-12 outside)."""
+    return float(min(max(value, p.lo), p.hi))
+
+
+def register_cli(subparsers) -> None:
+    from .report import register_cli as _register  # the CLI needs matplotlib; import it late
+
+    _register(subparsers)

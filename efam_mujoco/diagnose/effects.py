@@ -1,0 +1,651 @@
+"""Candidate physics the force-balance model (Eq. 2) leaves out, as small causal terms.
+
+Every candidate adds a force ``dF`` (N, MuJoCo sign: positive pushes the ends apart) to the
+model's ``Muscle.push(P, L)``. It is computed from what a simulation step knows: the gauge pressure
+P, the length L, their previous values (so their rates), the time t since the start, and a small
+state. Each term is written so that its amplitudes enter linearly (fitted by bounded linear least
+squares together with small corrections of the model's own parameters) and at most two *shape*
+parameters (a slip width, a time constant) enter non-linearly (searched on a grid, then refined).
+
+Notation: x = L / L_rest - 1 (axial strain), P_MPa = P / 1e6, B and N the thread length and turns,
+F(P, L) the model's push force, play(u, w) the play operator (a backlash of half-width w whose
+output z in [-1, 1] moves only while u keeps moving the same way: z_k = clip(z_{k-1} + du_k / w,
+-1, 1)), lag(u, tau) the first-order lag y_k = y_{k-1} + (1 - exp(-dt / tau)) (u_k - y_{k-1})
+(MuJoCo's ``filterexact``).
+
+A tension-only muscle that the model calls slack carries no effect force except the sensor's
+(``force_offset``): the terms are multiplied by ``engaged`` = (model force != 0).
+
+The reference per-sample implementation (:meth:`Effect.step`) is what a C plugin would run; the
+vectorised one (:meth:`Effect.design`) is what the diagnosis fits; a test holds them equal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..muscle import Muscle
+from ..recordings import Recording
+
+P_ATM = 101325.0
+
+
+# ------------------------------------------------------------------------ causal primitives
+def segments(starts: np.ndarray, n: int):
+    """(begin, end) index pairs of the recordings concatenated in one array."""
+    edges = list(starts) + [n]
+    return [(int(edges[i]), int(edges[i + 1])) for i in range(len(starts))]
+
+
+def lag(t: np.ndarray, u: np.ndarray, tau: float, starts=(0,)) -> np.ndarray:
+    """First-order lag, exact for a held input (MuJoCo ``filterexact``): y_0 = u_0 at each start,
+    y_k = a_k y_{k-1} + (1 - a_k) u_k with a_k = exp(-(t_k - t_{k-1}) / tau). Vectorised for any
+    sampling: within blocks spanning at most 30 tau, y_k = A_k (y_b + sum_j (1 - a_j) u_j / A_j)
+    with A_k = exp(-(t_k - t_b) / tau)."""
+    out = np.empty_like(u, dtype=float)
+    for b, e in segments(np.asarray(starts), len(u)):
+        tt, uu, yy = t[b:e], u[b:e], out[b:e]
+        y0 = float(uu[0])
+        yy[0] = y0
+        k = 1
+        while k < len(tt):
+            stop = max(int(np.searchsorted(tt, tt[k - 1] + 30.0 * tau, side="right")), k + 1)
+            s = slice(k, stop)
+            A = np.exp(-(tt[s] - tt[k - 1]) / tau)
+            a = np.exp(-np.diff(tt[k - 1 : stop]) / tau)
+            yy[s] = A * (y0 + np.cumsum((1.0 - a) * uu[s] / A))
+            y0 = float(yy[stop - 1])
+            k = stop
+    return out
+
+
+def play(u: np.ndarray, width: float, starts=(0,)) -> np.ndarray:
+    """Play operator output z in [-1, 1] (0 at each start): z_k = clip(z_{k-1} + du_k/width, -1, 1)."""
+    out = np.empty(len(u))
+    values = (np.asarray(u, dtype=float) / width).tolist()
+    for b, e in segments(np.asarray(starts), len(u)):
+        z = 0.0
+        prev = values[b]
+        for i in range(b, e):
+            v = values[i]
+            z += v - prev
+            prev = v
+            z = 1.0 if z > 1.0 else (-1.0 if z < -1.0 else z)
+            out[i] = z
+    return out
+
+
+def running_max(u: np.ndarray, starts=(0,)) -> np.ndarray:
+    out = np.empty_like(u, dtype=float)
+    for b, e in segments(np.asarray(starts), len(u)):
+        out[b:e] = np.maximum.accumulate(u[b:e])
+    return out
+
+
+def backward_rate(t: np.ndarray, u: np.ndarray, starts=(0,)) -> np.ndarray:
+    """(u_k - u_{k-1}) / (t_k - t_{k-1}), zero at each start (causal)."""
+    out = np.zeros(len(u))
+    for b, e in segments(np.asarray(starts), len(u)):
+        if e - b > 1:
+            out[b + 1 : e] = np.diff(u[b:e]) / np.maximum(np.diff(t[b:e]), 1e-12)
+    return out
+
+
+def high_frequency_noise(u: np.ndarray, starts=(0,)) -> float:
+    """Robust white-noise level of a signal: the MAD of its second differences / sqrt(6)
+    (a smooth signal has small second differences; noise has variance 6 sigma^2 there)."""
+    parts = [np.diff(u[b:e], 2) for b, e in segments(np.asarray(starts), len(u)) if e - b > 2]
+    if not parts:
+        return 0.0
+    d2 = np.concatenate(parts)
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+# ----------------------------------------------------------------------- model quantities
+def tension_with_thread(muscle: Muscle, P, L, thread_scale):
+    """Eq. 2 with the thread length B scaled (threads that stretch), N and the resting state
+    unchanged. Equal to ``muscle.tension`` at scale 1 inside the admissible range."""
+    P = np.maximum(np.asarray(P, dtype=float), 0.0)
+    L = np.clip(np.asarray(L, dtype=float), muscle.min_length_m, muscle.max_length_m)
+    B = muscle.thread_length_m * np.asarray(thread_scale, dtype=float)
+    N = muscle.turns
+    r_out = np.sqrt(np.maximum(B * B - L * L, 0.0)) / (2 * math.pi * N)
+    wall = r_out - np.sqrt(np.maximum(r_out * r_out - muscle.bladder_volume_m3 / (math.pi * L), 0.0))
+    eps_z = L / muscle.rest_length_m - 1.0
+    eps_c = (r_out - wall / 2) / (muscle.rest_outer_radius_m - muscle.rest_wall_thickness_m / 2) - 1.0
+    gauge = np.maximum(P - muscle.deadband_Pa, 0.0)
+    return (
+        gauge / (4 * math.pi * N * N) * (3 * L * L - B * B)
+        + muscle.stress(eps_z, P) * muscle.bladder_volume_m3 / L
+        - muscle.stress(eps_c, P) * wall * L * L / (2 * math.pi * r_out * N * N)
+    )
+
+
+def bladder_tension(muscle: Muscle, P, L):
+    """The bladder's share of Eq. 2 (the two stress terms), paper sign."""
+    L = np.clip(np.asarray(L, dtype=float), muscle.min_length_m, muscle.max_length_m)
+    P = np.maximum(np.asarray(P, dtype=float), 0.0)
+    eps_z, eps_c = muscle.strains(L)
+    wall = muscle.wall_thickness(L)
+    r_out = muscle.outer_radius(L)
+    N = muscle.turns
+    return muscle.stress(eps_z, P) * muscle.bladder_volume_m3 / L - muscle.stress(eps_c, P) * wall * L * L / (
+        2 * math.pi * r_out * N * N
+    )
+
+
+def gas_volume(muscle: Muscle, L):
+    """Gas inside the muscle: the sleeve cylinder pi R_o(L)^2 L less the bladder wall V_B."""
+    L = np.clip(np.asarray(L, dtype=float), muscle.min_length_m, muscle.max_length_m)
+    return np.maximum(math.pi * muscle.outer_radius(L) ** 2 * L - muscle.bladder_volume_m3, 1e-9)
+
+
+class Context:
+    """The inputs of the effect terms for concatenated recordings, with the base model."""
+
+    def __init__(self, t, L, P, starts, muscle: Muscle):
+        self.t = np.asarray(t, dtype=float)
+        self.L = np.asarray(L, dtype=float)
+        self.P = np.asarray(P, dtype=float)
+        self.starts = np.asarray(starts, dtype=int)
+        self.muscle = muscle
+        self.n = len(self.t)
+        self.x = self.L / muscle.rest_length_m - 1.0
+        self.P_MPa = self.P / 1e6
+        self.base = muscle.push(self.P, self.L)
+        self.engaged = (self.base != 0.0) if muscle.tension_only else np.ones(self.n, dtype=bool)
+        self.pressure_noise_Pa = high_frequency_noise(self.P, self.starts)
+        self.strain_noise = high_frequency_noise(self.x, self.starts)
+        self._cache: dict = {}
+
+    @classmethod
+    def from_recordings(cls, recordings: list[Recording], muscle: Muscle) -> Context:
+        starts = np.cumsum([0] + [len(r) for r in recordings[:-1]])
+        return cls(
+            np.concatenate([r.time_s - r.time_s[0] for r in recordings]),
+            np.concatenate([r.length_m for r in recordings]),
+            np.concatenate([r.pressure_Pa for r in recordings]),
+            starts,
+            muscle,
+        )
+
+    def cached(self, key, make):
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+    def dF_dL(self):
+        h = 1e-6 * self.muscle.rest_length_m
+        m = self.muscle
+        return self.cached("dL", lambda: (m.push(self.P, self.L + h) - m.push(self.P, self.L - h)) / (2 * h))
+
+    def dF_dP(self):
+        m = self.muscle
+        return self.cached(
+            "dP", lambda: (m.push(self.P + 100.0, self.L) - m.push(self.P - 100.0, self.L)) / 200.0
+        )
+
+    def input_noise(self):
+        """The force error the model inherits from the pressure sensor's noise (errors in
+        variables): dF/dP times the pressure's deviation from its centred 5-sample mean."""
+
+        def make():
+            out = np.zeros(self.n)
+            for b, e in segments(self.starts, self.n):
+                u = self.P[b:e]
+                if e - b >= 5:
+                    kernel = np.ones(5) / 5
+                    smooth = np.convolve(np.r_[u[:2][::-1], u, u[-2:][::-1]], kernel, mode="valid")
+                    out[b:e] = u - smooth
+            return out * self.dF_dP()
+
+        return self.cached("eiv", make)
+
+    def bladder_push(self):
+        return self.cached("bladder", lambda: -bladder_tension(self.muscle, self.P, self.L))
+
+    def dF_dB(self):
+        """d push / d ln B (the force change per relative thread stretch)."""
+
+        def make():
+            h = 1e-6
+            m = self.muscle
+            up = tension_with_thread(m, self.P, self.L, 1 + h)
+            down = tension_with_thread(m, self.P, self.L, 1 - h)
+            return -(up - down) / (2 * h)
+
+        return self.cached("dB", make)
+
+    def pressure_sign(self):
+        """Sign of d push / d P from Eq. 2's pressure term: +1 where 3 L^2 < B^2 (pressure pushes)."""
+        m = self.muscle
+        return self.cached("sP", lambda: -np.sign(3 * self.L**2 - m.thread_length_m**2))
+
+
+# ---------------------------------------------------------------------------- the library
+@dataclass(frozen=True)
+class Param:
+    """A parameter, its unit in the key. ``shape``: searched non-linearly on ``grid`` (log)."""
+
+    key: str
+    lo: float
+    hi: float
+    shape: bool = False
+    grid: tuple[float, ...] = ()
+    meaning: str = ""
+
+
+@dataclass
+class Effect:
+    """A candidate term. Subclasses give ``_design`` (vectorised) and ``step`` (per sample)."""
+
+    name: str = ""
+    summary: str = ""
+    equation: str = ""
+    params: tuple[Param, ...] = ()
+    state: tuple[str, ...] = ()
+    plugin: str = ""
+    signature: str = ""  # what it leaves in the residual, in words
+
+    @property
+    def linear(self) -> tuple[Param, ...]:
+        return tuple(p for p in self.params if not p.shape)
+
+    @property
+    def shapes(self) -> tuple[Param, ...]:
+        return tuple(p for p in self.params if p.shape)
+
+    def default_shape(self) -> dict[str, float]:
+        return {p.key: p.grid[len(p.grid) // 2] for p in self.shapes}
+
+    def shape_range(self, ctx: Context, p: Param) -> tuple[float, tuple[float, ...], float]:
+        """(lowest value, grid, highest value) of a shape parameter for these recordings."""
+        return p.lo, p.grid, p.hi
+
+    def design(self, ctx: Context, shape: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """(fixed force, columns): dF = fixed + columns @ linear values, both zero where the
+        muscle is slack (except the sensor offset)."""
+        key = (self.name, tuple(sorted(shape.items())))
+        return ctx.cached(key, lambda: self._design(ctx, shape))
+
+    def _design(self, ctx: Context, shape):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def force(self, ctx: Context, values: dict[str, float]) -> np.ndarray:
+        fixed, cols = self.design(ctx, {p.key: values[p.key] for p in self.shapes})
+        a = np.array([values[p.key] for p in self.linear])
+        return fixed + (cols @ a if len(a) else 0.0)
+
+    def initial_state(self) -> list[float]:
+        return [0.0] * len(self.state)
+
+    def step(self, values, state, sample) -> float:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+def _gate(ctx, cols):
+    return cols * ctx.engaged[:, None] if cols.ndim == 2 else cols * ctx.engaged
+
+
+@dataclass
+class Sample:
+    """What the per-sample reference step sees (the plugin sees the same)."""
+
+    t: float
+    P: float
+    L: float
+    P_prev: float
+    L_prev: float
+    dt: float
+    first: bool
+    muscle: Muscle
+
+    @property
+    def x(self) -> float:
+        return self.L / self.muscle.rest_length_m - 1.0
+
+    @property
+    def engaged(self) -> bool:
+        return (not self.muscle.tension_only) or self.muscle.push(self.P, self.L) != 0.0
+
+
+class Friction(Effect):
+    def __init__(self):
+        super().__init__(
+            name="friction",
+            summary="direction-dependent, rate-independent hysteresis (braid/bladder/tube friction)",
+            equation=(
+                "dF = -(f0 + f1 P_MPa) play(x, w_x) - (g0 + g1 P_MPa) s_P play(P, w_P), "
+                "s_P = sign(B^2 - 3 L^2)"
+            ),
+            params=(
+                Param("f0_N", 0.0, 100.0, meaning="friction force opposing motion at zero pressure"),
+                Param("f1_N_per_MPa", 0.0, 300.0, meaning="its growth with pressure"),
+                Param("g0_N", 0.0, 100.0, meaning="force lag while pressurising/venting at zero pressure"),
+                Param("g1_N_per_MPa", 0.0, 300.0, meaning="its growth with pressure"),
+                Param(
+                    "slip_strain", 5e-4, 0.05, True, (1e-3, 3e-3, 6e-3, 0.012, 0.025), "pre-sliding strain"
+                ),
+                Param("slip_kPa", 0.5, 100.0, True, (2.0, 6.0, 15.0, 40.0), "pre-sliding pressure change"),
+            ),
+            state=("z_x", "z_P"),
+            plugin="two play states; needs the previous L and P",
+            signature="a force step with the direction of motion that persists through holds",
+        )
+
+    def shape_range(self, ctx, p):
+        # a pre-sliding width below a few sensor-noise steps would let the play operator follow
+        # the measured noise (and "explain" the noise the model inherits from its inputs)
+        noise = ctx.pressure_noise_Pa / 1e3 if p.key == "slip_kPa" else ctx.strain_noise
+        lo = max(p.lo, 8.0 * noise)
+        grid = tuple(sorted({max(g, lo) for g in p.grid}))
+        return lo, grid, max(p.hi, lo)
+
+    def _design(self, ctx, shape):
+        wx, wp = shape["slip_strain"], shape["slip_kPa"] * 1e3
+        zx = ctx.cached(("play_x", wx), lambda: play(ctx.x, wx, ctx.starts))
+        zp = ctx.cached(("play_P", wp), lambda: play(ctx.P, wp, ctx.starts)) * ctx.pressure_sign()
+        cols = -np.column_stack([zx, ctx.P_MPa * zx, zp, ctx.P_MPa * zp])
+        return np.zeros(ctx.n), _gate(ctx, cols)
+
+    def step(self, v, state, s: Sample) -> float:
+        if s.first:
+            state[:] = [0.0, 0.0]
+        dx = (s.L - s.L_prev) / s.muscle.rest_length_m
+        state[0] = min(1.0, max(-1.0, state[0] + dx / v["slip_strain"]))
+        state[1] = min(1.0, max(-1.0, state[1] + (s.P - s.P_prev) / (v["slip_kPa"] * 1e3)))
+        sign_p = -math.copysign(1.0, 3 * s.L**2 - s.muscle.thread_length_m**2)
+        p = s.P / 1e6
+        force = -(v["f0_N"] + v["f1_N_per_MPa"] * p) * state[0]
+        force -= (v["g0_N"] + v["g1_N_per_MPa"] * p) * sign_p * state[1]
+        return force if s.engaged else 0.0
+
+
+class Viscoelasticity(Effect):
+    def __init__(self):
+        super().__init__(
+            name="viscoelasticity",
+            summary="rate-dependent stiffness that relaxes during holds (one Maxwell branch)",
+            equation="dF = -(k0 + k1 P_MPa) (x - w),  w = lag(x, tau)",
+            params=(
+                Param("k0_N", 0.0, 5000.0, meaning="Maxwell branch stiffness per unit strain"),
+                Param("k1_N_per_MPa", 0.0, 10000.0, meaning="its growth with pressure"),
+                Param("tau_s", 0.1, 500.0, True, (0.5, 1.5, 4.0, 10.0, 25.0, 60.0, 150.0), "relaxation time"),
+            ),
+            state=("w",),
+            plugin="one lag state on the strain",
+            signature="hysteresis that grows with the rate and relaxes during holds",
+        )
+
+    def _design(self, ctx, shape):
+        d = ctx.x - lag(ctx.t, ctx.x, shape["tau_s"], ctx.starts)
+        return np.zeros(ctx.n), _gate(ctx, -np.column_stack([d, ctx.P_MPa * d]))
+
+    def step(self, v, state, s: Sample) -> float:
+        if s.first:
+            state[0] = s.x
+        else:
+            state[0] += (1.0 - math.exp(-s.dt / v["tau_s"])) * (s.x - state[0])
+        force = -(v["k0_N"] + v["k1_N_per_MPa"] * s.P / 1e6) * (s.x - state[0])
+        return force if s.engaged else 0.0
+
+
+class EndEffects(Effect):
+    def __init__(self):
+        super().__init__(
+            name="end_effects",
+            summary="non-cylindrical ends near the fittings: the cylinder strains more than the "
+            "muscle (Tondu's strain factor k = 1 + kappa, falling with pressure)",
+            equation="dF = (kappa0 + kappa1 exp(-P/P_e)) (L - L_rest) dF/dL",
+            params=(
+                Param("kappa0", 0.0, 0.5, meaning="strain amplification at high pressure"),
+                Param("kappa1", -0.5, 0.5, meaning="its excess at low pressure"),
+                Param("P_e_kPa", 10.0, 1000.0, True, (30.0, 80.0, 200.0, 500.0), "pressure scale"),
+            ),
+            plugin="stateless; evaluates the model at L +- h",
+            signature="a static error growing with the stroke, changing with pressure",
+        )
+
+    def _design(self, ctx, shape):
+        base = (ctx.L - ctx.muscle.rest_length_m) * ctx.dF_dL()
+        decay = np.exp(-ctx.P / (shape["P_e_kPa"] * 1e3))
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([base, decay * base]))
+
+    def step(self, v, state, s: Sample) -> float:
+        m = s.muscle
+        h = 1e-6 * m.rest_length_m
+        slope = (m.push(s.P, s.L + h) - m.push(s.P, s.L - h)) / (2 * h)
+        kappa = v["kappa0"] + v["kappa1"] * math.exp(-s.P / (v["P_e_kPa"] * 1e3))
+        force = kappa * (s.L - m.rest_length_m) * slope
+        return force if s.engaged else 0.0
+
+
+class BraidCompliance(Effect):
+    def __init__(self):
+        super().__init__(
+            name="braid_compliance",
+            summary="threads that stretch under the pressure load (B grows with P)",
+            equation="dF = (b1 G + b2 G^2) dF/d(ln B),  G = max(P - P_db, 0) in MPa",
+            params=(
+                Param("b1_per_MPa", 0.0, 0.2, meaning="thread strain per MPa of gauge pressure"),
+                Param("b2_per_MPa2", -0.2, 0.2, meaning="its curvature (crimp, stiffening)"),
+            ),
+            plugin="stateless; evaluates Eq. 2 with the thread length scaled by 1 +- h",
+            signature="a static error growing with pressure, shaped like a braid-angle change",
+        )
+
+    def _design(self, ctx, shape):
+        G = np.maximum(ctx.P - ctx.muscle.deadband_Pa, 0.0) / 1e6
+        d = ctx.dF_dB()
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([G * d, G * G * d]))
+
+    def step(self, v, state, s: Sample) -> float:
+        m = s.muscle
+        G = max(s.P - m.deadband_Pa, 0.0) / 1e6
+        h = 1e-6
+        slope = -(tension_with_thread(m, s.P, s.L, 1 + h) - tension_with_thread(m, s.P, s.L, 1 - h)) / (2 * h)
+        force = (v["b1_per_MPa"] * G + v["b2_per_MPa2"] * G * G) * float(slope)
+        return force if s.engaged else 0.0
+
+
+class Softening(Effect):
+    def __init__(self):
+        super().__init__(
+            name="softening",
+            summary="Mullins effect: the bladder is stiffer on the first loading to a new extreme "
+            "than on later ones",
+            equation=(
+                "dF = a h F_bladder(P, L),  h = exp(-(m - u)/width),  u = |x| (1 + P/0.5 MPa),  "
+                "m = max u so far"
+            ),
+            params=(
+                Param("a", 0.0, 1.0, meaning="extra bladder stiffness on the virgin curve (fraction)"),
+                Param("width", 1e-3, 0.5, True, (0.005, 0.015, 0.04, 0.1, 0.25), "how fast it fades"),
+            ),
+            state=("m",),
+            plugin="one running-maximum state; needs the bladder part of Eq. 2",
+            signature="the first cycle at each new pressure or strain carries extra force",
+        )
+
+    def _design(self, ctx, shape):
+        u = np.abs(ctx.x) * (1.0 + ctx.P / 0.5e6)
+        h = np.exp(-(running_max(u, ctx.starts) - u) / shape["width"])
+        return np.zeros(ctx.n), _gate(ctx, (h * ctx.bladder_push())[:, None])
+
+    def step(self, v, state, s: Sample) -> float:
+        u = abs(s.x) * (1.0 + s.P / 0.5e6)
+        state[0] = u if s.first else max(state[0], u)
+        bladder = -float(bladder_tension(s.muscle, s.P, s.L))
+        force = v["a"] * math.exp(-(state[0] - u) / v["width"]) * bladder
+        return force if s.engaged else 0.0
+
+
+class Drift(Effect):
+    def __init__(self):
+        super().__init__(
+            name="drift",
+            summary="slow change over time (temperature, creep of the set-up)",
+            equation="dF = (d0 + d1 x + d2 P_MPa) tau (1 - exp(-t/tau))",
+            params=(
+                Param("d0_N_per_s", -1.0, 1.0, meaning="initial drift rate of the force"),
+                Param("d1_N_per_s", -10.0, 10.0, meaning="its growth with strain"),
+                Param("d2_N_per_s_MPa", -10.0, 10.0, meaning="its growth with pressure"),
+                Param("tau_s", 30.0, 1e6, True, (100.0, 300.0, 1000.0, 3000.0, 1e5), "time constant"),
+            ),
+            plugin="stateless; uses the time since the start",
+            signature="a residual that changes steadily with time, across pressures and cycles",
+        )
+
+    def _design(self, ctx, shape):
+        tau = shape["tau_s"]
+        s = tau * -np.expm1(-ctx.t / tau)
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([s, ctx.x * s, ctx.P_MPa * s]))
+
+    def step(self, v, state, s: Sample) -> float:
+        tau = v["tau_s"]
+        ramp = tau * -math.expm1(-s.t / tau)
+        force = (v["d0_N_per_s"] + v["d1_N_per_s"] * s.x + v["d2_N_per_s_MPa"] * s.P / 1e6) * ramp
+        return force if s.engaged else 0.0
+
+
+class PressureLag(Effect):
+    def __init__(self):
+        super().__init__(
+            name="pressure_lag",
+            summary="the internal pressure lags the measured one (valve, tube, gas volume)",
+            equation=(
+                "dF = F(P_i, L) - F(P, L),  P_i = lag(P - tau (P + P_atm) dV/dt / V, tau), "
+                "V = pi R_o(L)^2 L - V_B"
+            ),
+            params=(
+                Param(
+                    "tau_s", 0.002, 3.0, True, (0.01, 0.03, 0.08, 0.15, 0.3, 0.6, 1.2), "fill time constant"
+                ),
+            ),
+            state=("P_i", "V_prev"),
+            plugin="MuJoCo filterexact (dynprm = tau) plus the volume term; one state",
+            signature="force lagging pressure changes, and an error while the volume changes",
+        )
+
+    def _design(self, ctx, shape):
+        tau = shape["tau_s"]
+        m = ctx.muscle
+        V = ctx.cached("V", lambda: gas_volume(m, ctx.L))
+        dVdt = ctx.cached("dV", lambda: backward_rate(ctx.t, V, ctx.starts))
+        drive = ctx.P - tau * (ctx.P + P_ATM) * dVdt / V
+        P_int = lag(ctx.t, drive, tau, ctx.starts)
+        return _gate(ctx, m.push(P_int, ctx.L) - ctx.base), np.zeros((ctx.n, 0))
+
+    def step(self, v, state, s: Sample) -> float:
+        m = s.muscle
+        tau = v["tau_s"]
+        V = float(gas_volume(m, s.L))
+        if s.first:
+            state[:] = [s.P, V]
+            return 0.0
+        drive = s.P - tau * (s.P + P_ATM) * (V - state[1]) / max(s.dt, 1e-12) / V
+        state[0] += (1.0 - math.exp(-s.dt / tau)) * (drive - state[0])
+        state[1] = V
+        force = m.push(state[0], s.L) - m.push(s.P, s.L)
+        return force if s.engaged else 0.0
+
+
+class ForceOffset(Effect):
+    def __init__(self):
+        super().__init__(
+            name="force_offset",
+            summary="load-cell zero error (a sensor effect, not a muscle force)",
+            equation="dF = c",
+            params=(Param("offset_N", -100.0, 100.0, meaning="load-cell reading at zero force"),),
+            plugin="not an actuator force: add it to the simulated load-cell reading",
+            signature="a constant residual, visible where the model force is zero",
+        )
+
+    def _design(self, ctx, shape):
+        return np.zeros(ctx.n), np.ones((ctx.n, 1))
+
+    def step(self, v, state, s: Sample) -> float:
+        return v["offset_N"]
+
+
+LIBRARY: dict[str, Effect] = {
+    e.name: e
+    for e in (
+        Friction(), Viscoelasticity(), EndEffects(), BraidCompliance(), Softening(), Drift(),
+        PressureLag(), ForceOffset(),
+    )
+}  # fmt: skip
+EFFECT_NAMES = tuple(LIBRARY)
+
+
+def get(name: str) -> Effect:
+    if name not in LIBRARY:
+        raise ValueError(f"unknown effect '{name}' (known: {', '.join(EFFECT_NAMES)})")
+    return LIBRARY[name]
+
+
+def check_values(name: str, values: dict) -> dict[str, float]:
+    """Every parameter of the effect present, numeric, inside its bounds (a clear error if not)."""
+    effect = get(name)
+    out = {}
+    for p in effect.params:
+        if p.key not in values:
+            raise ValueError(f"effect '{name}': missing parameter '{p.key}'")
+        v = values[p.key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"effect '{name}': parameter '{p.key}' must be a finite number, got {v!r}")
+        if not p.lo <= v <= p.hi:
+            raise ValueError(f"effect '{name}': parameter '{p.key}' = {v:g} is outside [{p.lo:g}, {p.hi:g}]")
+        out[p.key] = float(v)
+    unknown = sorted(set(values) - {p.key for p in effect.params})
+    if unknown:
+        raise ValueError(f"effect '{name}': unknown parameter '{unknown[0]}'")
+    return out
+
+
+# ------------------------------------------------------------------------- switching on
+@dataclass
+class EffectModel:
+    """A muscle with identified effects switched on: the Python path of the plugin's effects.
+
+    ``effects`` is a list of (name, parameters). :meth:`push` replays a recording's length and
+    pressure (vectorised); :meth:`push_stepwise` runs the per-sample reference a plugin runs.
+    """
+
+    muscle: Muscle
+    effects: list[tuple[str, dict]] = field(default_factory=list)
+
+    def __post_init__(self):
+        self.effects = [(name, check_values(name, values)) for name, values in self.effects]
+
+    def push(self, time_s, length_m, pressure_Pa) -> np.ndarray:
+        ctx = Context(np.asarray(time_s) - time_s[0], length_m, pressure_Pa, [0], self.muscle)
+        return ctx.base + sum((get(n).force(ctx, v) for n, v in self.effects), np.zeros(ctx.n))
+
+    def push_recording(self, recording: Recording) -> np.ndarray:
+        return self.push(recording.time_s, recording.length_m, recording.pressure_Pa)
+
+    def push_stepwise(self, time_s, length_m, pressure_Pa) -> np.ndarray:
+        states = [get(n).initial_state() for n, _ in self.effects]
+        out = np.empty(len(time_s))
+        t0 = float(time_s[0])
+        for k in range(len(time_s)):
+            s = Sample(
+                t=float(time_s[k]) - t0, P=float(pressure_Pa[k]), L=float(length_m[k]),
+                P_prev=float(pressure_Pa[k - 1] if k else pressure_Pa[0]),
+                L_prev=float(length_m[k - 1] if k else length_m[0]),
+                dt=float(time_s[k] - time_s[k - 1]) if k else 0.0, first=k == 0, muscle=self.muscle,
+            )  # fmt: skip
+            force = float(self.muscle.push(s.P, s.L))
+            for (name, values), state in zip(self.effects, states):
+                force += get(name).step(values, state, s)
+            out[k] = force
+        return out
+
+
+def apply(recording: Recording, muscle: Muscle, effects: list[tuple[str, dict]]) -> np.ndarray:
+    """Push force (N) the muscle with ``effects`` switched on gives for a recording's L and P."""
+    return EffectModel(muscle, effects).push_recording(recording)

@@ -1,0 +1,199 @@
+"""The model's own parameters, re-fitted before anything is called missing physics.
+
+A mismatch that a different braid angle, resting diameter, bladder volume, dead band or stress law
+would remove is parameter error, not missing physics. So the diagnosis first re-fits them:
+
+1. every stress law from ``calibrate.fit_law`` (dead band included) at the given geometry;
+2. each law's fit refined together with the geometry (braid angle, resting diameter, bladder
+   volume, dead band, law coefficients) by bounded non-linear least squares on a thinned sample;
+3. the law with the smallest BIC is the baseline;
+4. around it, the Jacobian of the push force with respect to all those parameters lets every
+   candidate effect be fitted *jointly* with small parameter corrections (a linearised refit),
+   so an effect is credited only with what the parameters cannot absorb.
+
+The geometry stays within bounds that keep the muscle what it is (the braid angle on its side of
+35.26 deg, diameter within 10 %, bladder volume within 30 %).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..calibrate import fit_law
+from ..muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle
+from ..recordings import Recording
+from ..stress import LAW_NAMES, LAWS, StressLaw
+
+GEOMETRY = ("theta_rest_deg", "rest_diameter_m", "bladder_volume_m3", "deadband_Pa")
+FIT_SAMPLES = 3000
+
+
+def names(law: str) -> tuple[str, ...]:
+    return GEOMETRY + LAWS[law].params
+
+
+def vector(muscle: Muscle) -> np.ndarray:
+    return np.array(
+        [muscle.theta_rest_deg, muscle.rest_diameter_m, muscle.bladder_volume_m3, muscle.deadband_Pa]
+        + list(muscle.stress.coefficients)
+    )
+
+
+def build(template: Muscle, law: str, v) -> Muscle:
+    """A muscle with parameter vector ``v`` (raises ValueError when it is not a valid muscle)."""
+    return replace(
+        template,
+        theta_rest_deg=float(v[0]),
+        rest_diameter_m=float(v[1]),
+        bladder_volume_m3=float(v[2]),
+        deadband_Pa=float(max(v[3], 0.0)),
+        stress=StressLaw(law, tuple(float(c) for c in v[4:])),
+    )
+
+
+def bounds(nominal: Muscle, law: str, deadband_hi: float) -> tuple[np.ndarray, np.ndarray]:
+    theta = nominal.theta_rest_deg
+    if theta < NEUTRAL_BRAID_ANGLE_DEG:
+        t_lo, t_hi = max(0.5, 0.85 * theta), min(1.15 * theta, NEUTRAL_BRAID_ANGLE_DEG - 0.5)
+    else:
+        t_lo, t_hi = max(0.85 * theta, NEUTRAL_BRAID_ANGLE_DEG + 0.5), min(1.15 * theta, 89.0)
+    lo = [t_lo, 0.9 * nominal.rest_diameter_m, 0.7 * nominal.bladder_volume_m3, 0.0]
+    hi = [t_hi, 1.1 * nominal.rest_diameter_m, 1.3 * nominal.bladder_volume_m3, deadband_hi]
+    for a, b in LAWS[law].search:
+        lo.append(a)
+        hi.append(b)
+    return np.array(lo), np.array(hi)
+
+
+def scales(v: np.ndarray) -> np.ndarray:
+    """Natural sizes of the parameters (for conditioning and for the linearised bounds)."""
+    s = np.abs(v) * 0.05
+    s[0] = 0.25  # degrees
+    s[3] = 5e3  # Pa of dead band
+    return np.maximum(s, 1e-12 + 1e-3 * np.abs(v))
+
+
+@dataclass
+class Refit:
+    muscle: Muscle
+    law: str
+    rms_N: float
+    by_law: dict[str, float] = field(default_factory=dict)  # in-sample RMS per law
+    seconds: float = 0.0
+    nominal: Muscle | None = None
+
+
+def _deadband_hi(P: np.ndarray) -> float:
+    positive = P[P > 0.05 * np.max(P)]
+    return 0.95 * float(np.percentile(positive, 2)) if len(positive) else 0.5 * float(np.max(P))
+
+
+def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
+    """Re-fit the stress law, dead band and geometry to the recordings (see the module text)."""
+    start = time.perf_counter()
+    P = np.concatenate([r.pressure_Pa for r in recordings])
+    L = np.concatenate([r.length_m for r in recordings])
+    F = np.concatenate([r.force_N for r in recordings])
+    step = max(1, len(P) // FIT_SAMPLES)
+    Ps, Ls, Fs = P[::step], L[::step], F[::step]
+    deadband_hi = _deadband_hi(P)
+    start_muscle = replace(muscle, deadband_Pa=min(muscle.deadband_Pa, deadband_hi))
+    results: dict[str, tuple[float, Muscle]] = {}
+    for law in laws:
+        try:
+            first = fit_law(start_muscle, recordings, law, fit_deadband=True, objective="lsq").muscle
+        except ValueError:
+            continue
+        fitted = _refine(first, law, Ps, Ls, Fs, bounds(muscle, law, deadband_hi))
+        rss = float(np.sum((fitted.push(Ps, Ls) - Fs) ** 2))
+        k = len(names(law))
+        bic = len(Fs) * math.log(max(rss, 1e-300) / len(Fs)) + k * math.log(len(Fs))
+        results[law] = (bic, fitted)
+    if not results:
+        raise ValueError("no stress law could be fitted to the recordings")
+    best = min(results, key=lambda law: results[law][0])
+    fitted = results[best][1]
+    by_law = {law: float(np.sqrt(np.mean((m.push(P, L) - F) ** 2))) for law, (_, m) in results.items()}
+    return Refit(fitted, best, by_law[best], by_law, time.perf_counter() - start, muscle)
+
+
+def _refine(first: Muscle, law: str, P, L, F, box) -> Muscle:
+    v0 = vector(first)
+    lo, hi = box
+    v0 = np.clip(v0, lo, hi)
+    s = scales(v0)
+    last_good = [first]
+
+    def residual(u):
+        try:
+            m = build(first, law, v0 + u * s)
+        except ValueError:
+            return np.full(len(F), 1e3)
+        last_good[0] = m
+        return m.push(P, L) - F
+
+    try:
+        sol = least_squares(residual, np.zeros(len(v0)), bounds=((lo - v0) / s, (hi - v0) / s),
+                            method="trf", x_scale=1.0, max_nfev=60, tr_solver="lsmr")  # fmt: skip
+        return build(first, law, v0 + sol.x * s)
+    except ValueError:
+        return first
+
+
+# ----------------------------------------------------------------------- linearised model
+@dataclass
+class Linearised:
+    """Push-force Jacobian around a muscle: ``J @ du`` is the force change for changes
+    ``du * scale`` of the parameters ``keep`` (scaled units), bounded by ``lo``/``hi`` (at most
+    +-``span`` scaled units, and inside the hard bounds)."""
+
+    muscle: Muscle
+    law: str
+    names: tuple[str, ...]
+    keep: np.ndarray
+    v0: np.ndarray
+    scale: np.ndarray
+    J: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def vector_for(self, du: np.ndarray) -> np.ndarray:
+        v = self.v0.copy()
+        v[self.keep] += np.asarray(du) * self.scale[self.keep]
+        return v
+
+    def muscle_for(self, du: np.ndarray) -> Muscle:
+        """The muscle with the corrections applied (the linearisation point if invalid)."""
+        try:
+            return build(self.muscle, self.law, self.vector_for(du))
+        except ValueError:
+            return self.muscle
+
+
+def linearise(muscle: Muscle, P, L, nominal: Muscle, span: float = 4.0) -> Linearised:
+    law = muscle.stress.name
+    v0 = vector(muscle)
+    s = scales(v0)
+    deadband_hi = max(_deadband_hi(P), muscle.deadband_Pa)
+    hard_lo, hard_hi = bounds(nominal, law, deadband_hi)
+    cols, keep = [], []
+    h = 0.01
+    for i in range(len(v0)):
+        e = h * s * (np.arange(len(v0)) == i)
+        try:
+            col = (build(muscle, law, v0 + e).push(P, L) - build(muscle, law, v0 - e).push(P, L)) / (2 * h)
+        except ValueError:
+            continue  # a parameter at an edge of validity stays fixed
+        if np.sqrt(np.mean(col**2)) > 1e-9:
+            cols.append(col)
+            keep.append(i)
+    keep = np.array(keep, dtype=int)
+    lo = np.minimum(np.maximum(-span, (hard_lo[keep] - v0[keep]) / s[keep]), 0.0)
+    hi = np.maximum(np.minimum(span, (hard_hi[keep] - v0[keep]) / s[keep]), 0.0)
+    J = np.column_stack(cols) if cols else np.zeros((len(P), 0))
+    return Linearised(muscle, law, tuple(names(law)[i] for i in keep), keep, v0, s, J, lo, hi)

@@ -1,0 +1,271 @@
+"""The diagnosis in words, JSON and figures, and the ``efam diagnose`` command."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from . import Diagnosis, diagnose
+from .effects import get
+
+
+def text(d: Diagnosis) -> str:
+    """A plain-text report: data, re-fit, located mismatch, candidates, what was found."""
+    out = []
+    out.append(f"efam diagnose: {d.n_samples} samples from {len(d.sources)} recording(s), {d.seconds:.1f} s")
+    m = d.muscle_before
+    out.append(
+        f"Re-fitted model: law {d.refit.law}, dead band {m.deadband_Pa / 1e3:.2f} kPa, braid angle "
+        f"{m.theta_rest_deg:.3f} deg, resting diameter {m.rest_diameter_m * 1e3:.2f} mm, bladder volume "
+        f"{m.bladder_volume_m3 * 1e6:.3f} cm^3"
+    )
+    out.append("  in-sample RMS per law: " + ", ".join(f"{k} {v:.2f} N" for k, v in d.refit.by_law.items()))
+    out.append("")
+    out.append("Located mismatch")
+    out.extend("  " + line for line in d.located["summary"])
+    out.append("")
+    out.append(f"Candidates (held-out RMS; baseline without any effect: {d.heldout_rms_before_N:.2f} N)")
+    out.append(f"  {'effect':18s} {'held-out N':>10s} {'dBIC':>12s} {'gain':>6s} {'excess cut':>10s}")
+    for c in d.candidates:
+        out.append(
+            f"  {c['name']:18s} {c['heldout_rms_N']:10.3f} {c['delta_bic']:12.0f} {c['heldout_gain']:6.1%} "
+            f"{c['excess_cut']:10.1%}"
+        )
+    out.append("")
+    if not d.effects:
+        out.append("Found: none -- no candidate beats the noise floor on held-out cycles.")
+    for i, e in enumerate(d.effects, 1):
+        out.append(f"Found {i}: {e['name']} -- {e['summary']}")
+        out.append(f"  equation: {e['equation']}")
+        params = ", ".join(f"{k} = {v:.4g}" for k, v in e["parameters"].items())
+        out.append(f"  parameters: {params}")
+        out.append(f"  held-out RMS {e['heldout_rms_before_N']:.3f} N -> {e['heldout_rms_after_N']:.3f} N")
+    out.append("")
+    out.append(
+        f"RMS in-sample {d.rms_before_N:.3f} N -> {d.rms_after_N:.3f} N; held out "
+        f"{d.heldout_rms_before_N:.3f} N -> {d.heldout_rms_after_N:.3f} N; noise floor {d.noise_N:.3f} N"
+    )
+    if d.effects:
+        out.append("Switch on: " + "; ".join(f"{e['name']}: {get(e['name']).plugin}" for e in d.effects))
+    return "\n".join(out) + "\n"
+
+
+def plugin_config(d: Diagnosis) -> dict[str, str]:
+    """Config keys a plugin would take for the identified effects (see docs/diagnosis.md)."""
+    keys: dict[str, str] = {}
+    names = [e["name"] for e in d.effects if e["name"] != "force_offset"]
+    if names:
+        keys["effects"] = ",".join(names)
+    for e in d.effects:
+        if e["name"] == "force_offset":
+            continue  # a sensor error: the rig's load cell adds it, not the actuator
+        for k, v in e["parameters"].items():
+            keys[f"{e['name']}.{k}"] = repr(float(v))
+    return keys
+
+
+def write_json(path, d: Diagnosis) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(d.to_json(), indent=1, default=float) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+# ------------------------------------------------------------------------------- figures
+def figures(d: Diagnosis, directory, prefix: str = "diagnose") -> list[Path]:
+    """Residual maps and before/after overlays as PNG files in ``directory``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = [_residual_map(d, plt, directory / f"{prefix}_residual_map.png"),
+             _overlay(d, plt, directory / f"{prefix}_overlay.png")]  # fmt: skip
+    return paths
+
+
+def _save(fig, path: Path, plt) -> Path:
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def _residual_map(d: Diagnosis, plt, path: Path) -> Path:
+    ctx, lab = d.ctx, d.labels
+    r = d.force - d.predicted_before
+    iso = lab.isometric
+    fig, ax = plt.subplots(2, 2, figsize=(12, 8))
+    # (a) in time, holds shaded
+    a = ax[0, 0]
+    t = _global_time(ctx)
+    a.plot(t, r, lw=0.4, color="0.3")
+    for h in range(lab.hold_id.max() + 1):
+        idx = np.flatnonzero(lab.hold_id == h)
+        a.axvspan(t[idx[0]], t[idx[-1]], color="tab:orange", alpha=0.15, lw=0)
+    a.axhline(0, color="k", lw=0.5)
+    a.set(xlabel="time (s)", ylabel="residual, measured - model (N)",
+          title=f"residual in time (holds shaded); noise floor {d.noise_N:.2f} N")  # fmt: skip
+    # (b) map over the position variable, rising and falling
+    a = ax[0, 1]
+    pos = ctx.P / 1e3 if iso else ctx.x
+    for dirn, colour, name in ((1, "tab:red", "rising"), (-1, "tab:blue", "falling")):
+        m = lab.direction == dirn
+        centres, means = _binned(pos[m], r[m], 30)
+        a.plot(centres, means, "o-", ms=3, color=colour, label=name)
+    a.axhline(0, color="k", lw=0.5)
+    a.set(xlabel="pressure (kPa)" if iso else "strain L/L_rest - 1", ylabel="mean residual (N)",
+          title="residual map by direction")  # fmt: skip
+    a.legend()
+    # (c) factor strengths
+    a = ax[1, 0]
+    f = d.located["factors"]
+    names = list(f)
+    values = [f[k]["strength_N"] for k in names]
+    colours = ["tab:red" if f[k]["above_noise"] else "0.6" for k in names]
+    a.barh(names, values, color=colours)
+    a.axvline(0.25 * d.noise_N, color="k", ls="--", lw=0.8, label="0.25 x noise floor")
+    a.set(xlabel="strength: RMS of bin means (N)", title="what organises the residual (red: above noise)")
+    a.legend()
+    # (d) residual by pressure level and cycle (stroke data) or by pressure bin (isometric)
+    a = ax[1, 1]
+    if iso or not len(lab.levels_Pa):
+        key = "pressure"
+        bins = f[key]["bins"]
+        a.bar([b["bin"] for b in bins], [b["mean_N"] for b in bins], color="tab:purple")
+        a.tick_params(axis="x", rotation=45)
+        a.set(ylabel="mean residual (N)", title="by pressure")
+    else:
+        for c in range(min(lab.cycle_in_level.max() + 1, 4)):
+            means = [np.mean(r[(lab.level == j) & (lab.cycle_in_level == c)]) if np.any((lab.level == j) & (lab.cycle_in_level == c)) else np.nan
+                     for j in range(len(lab.levels_Pa))]  # fmt: skip
+            a.plot(lab.levels_Pa / 1e3, means, "o-", label=f"cycle {c + 1} at the level")
+        a.axhline(0, color="k", lw=0.5)
+        a.set(xlabel="pressure level (kPa)", ylabel="mean residual (N)", title="by pressure and cycle number")
+        a.legend()
+    fig.tight_layout()
+    return _save(fig, path, plt)
+
+
+def _overlay(d: Diagnosis, plt, path: Path) -> Path:
+    ctx, lab = d.ctx, d.labels
+    iso = lab.isometric
+    fig, ax = plt.subplots(1, 3, figsize=(16, 5))
+    pos = ctx.P / 1e3 if iso else ctx.x
+    a = ax[0]
+    step = max(1, ctx.n // 6000)
+    a.plot(pos[::step], d.force[::step], ".", ms=1.5, color="0.6", label="measured")
+    a.plot(pos[::step], d.predicted_before[::step], ".", ms=1, color="tab:blue", label="model (re-fitted)")
+    a.plot(
+        pos[::step],
+        d.predicted_after[::step],
+        ".",
+        ms=1,
+        color="tab:red",
+        label="model + " + (" + ".join(d.names) or "nothing"),
+    )
+    a.set(xlabel="pressure (kPa)" if iso else "strain L/L_rest - 1", ylabel="push force (N)", title="overlay")
+    a.legend(markerscale=6)
+    # zoom: the cycle where the effect matters most
+    r0 = d.force - d.predicted_before
+    r1 = d.force - d.predicted_after
+    cyc = [c for c in np.unique(lab.cycle)]
+    worst = max(cyc, key=lambda c: np.mean(r0[lab.cycle == c] ** 2))
+    m = lab.cycle == worst
+    a = ax[1]
+    # measured and both models less the re-fitted model: the mismatch loop and how much is left
+    a.plot(pos[m], r0[m], ".", ms=2, color="0.5", label="measured - model")
+    a.plot(pos[m], d.predicted_after[m] - d.predicted_before[m], "-", lw=1.2, color="tab:red",
+           label="identified effect")  # fmt: skip
+    a.axhline(0, color="tab:blue", lw=1, label="re-fitted model")
+    a.set(xlabel="pressure (kPa)" if iso else "strain L/L_rest - 1", ylabel="force relative to the model (N)",
+          title=f"cycle {worst + 1} (largest mismatch)")  # fmt: skip
+    a.legend()
+    a = ax[2]
+    t = _global_time(ctx)
+    a.plot(t, r0, lw=0.4, color="tab:blue", label=f"before: RMS {np.sqrt(np.mean(r0**2)):.2f} N")
+    a.plot(t, r1, lw=0.4, color="tab:red", label=f"after: RMS {np.sqrt(np.mean(r1**2)):.2f} N")
+    a.set(xlabel="time (s)", ylabel="residual (N)", title="residual before and after")
+    a.legend()
+    fig.tight_layout()
+    return _save(fig, path, plt)
+
+
+def _global_time(ctx) -> np.ndarray:
+    """Concatenated recordings on one time axis (each starts where the previous ended)."""
+    t = ctx.t.copy()
+    for i, s in enumerate(ctx.starts[1:], 1):
+        end = ctx.starts[i + 1] if i + 1 < len(ctx.starts) else ctx.n
+        t[s:end] += t[s - 1] + (t[s - 1] - t[s - 2] if s >= 2 else 0.0)
+    return t
+
+
+def _binned(x, y, n):
+    if len(x) == 0:
+        return np.array([]), np.array([])
+    edges = np.linspace(np.min(x), np.max(x) + 1e-12, n + 1)
+    idx = np.clip(np.searchsorted(edges, x) - 1, 0, n - 1)
+    counts = np.bincount(idx, minlength=n)
+    sums = np.bincount(idx, weights=y, minlength=n)
+    ok = counts > 3
+    return ((edges[:-1] + edges[1:]) / 2)[ok], sums[ok] / counts[ok]
+
+
+# ----------------------------------------------------------------------------------- CLI
+def register_cli(subparsers) -> None:
+    p = subparsers.add_parser(
+        "diagnose",
+        help="locate the model-vs-recording mismatch and name the missing physics",
+        description=(
+            "Replay recordings (CSV: time_s, length_m or displacement_mm, pressure_kPa/_Pa/_psi, "
+            "force_N or tension_N) through the re-fitted model, locate where the residual stands "
+            "above the noise floor, and identify the missing effect from a library of candidate "
+            "physics with held-out cycles and BIC."
+        ),
+    )
+    p.add_argument("files", nargs="+", metavar="FILE", help="recording CSV files")
+    p.add_argument("--muscle", required=True, help="preset (FAM1, FAM2) or muscle file: the starting model")
+    p.add_argument("--json", help="write the JSON result here")
+    p.add_argument("--report", metavar="DIR", help="write report.txt and the figures into DIR")
+    p.add_argument("--tension-only", action="store_true", help="a muscle that cannot push (contractile)")
+    p.add_argument("--on-bad-rows", choices=("error", "drop"), default="error",
+                   help="bad CSV rows: stop with an error (default) or drop them and report which")  # fmt: skip
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from dataclasses import replace
+
+    from ..musclefile import load_muscle
+    from ..recordings import drop_report, read_csv
+
+    muscle = load_muscle(args.muscle)
+    if args.tension_only:
+        muscle = replace(muscle, tension_only=True)
+    recordings = []
+    for f in args.files:
+        rec = read_csv(f, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
+        note = drop_report(rec)
+        if note:
+            print(note)
+        recordings.append(rec)
+    d = diagnose(recordings, muscle)
+    report = text(d)
+    print(report, end="")
+    if args.json:
+        write_json(args.json, d)
+    if args.report:
+        directory = Path(args.report)
+        directory.mkdir(parents=True, exist_ok=True)
+        (directory / "report.txt.tmp").write_text(report)
+        os.replace(directory / "report.txt.tmp", directory / "report.txt")
+        for path in figures(d, directory):
+            print(f"figure: {path}")
+    return 0
