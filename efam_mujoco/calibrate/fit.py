@@ -366,12 +366,20 @@ class _Space:
             return {self.names[0]: math.exp(math.log(lo) + x * (math.log(hi) - math.log(lo)))}
         return {n: b[0] + float(x) * (b[1] - b[0]) for n, b, x in zip(self.names, self.boxes, u)}
 
-    def grid(self) -> list[np.ndarray]:
+    def unit(self, nonlinear: dict[str, float]) -> np.ndarray:
+        """Inverse of :meth:`values`."""
+        if self.log:
+            (lo, hi), v = self.boxes[0], nonlinear[self.names[0]]
+            return np.array([(math.log(v) - math.log(lo)) / (math.log(hi) - math.log(lo))])
+        return np.array([(nonlinear[n] - b[0]) / (b[1] - b[0]) for n, b in zip(self.names, self.boxes)])
+
+    def grid(self, points: int | None = None) -> list[np.ndarray]:
+        """A regular grid over the box (25 points in 1-D, 9 x 9 in 2-D by default)."""
         if not self.names:
             return [np.zeros(0)]
         if self.log:
-            return [np.array([x]) for x in np.linspace(0.0, 1.0, 25)]
-        axis = np.linspace(0.0, 1.0, 9)
+            return [np.array([x]) for x in np.linspace(0.0, 1.0, points or 25)]
+        axis = np.linspace(0.0, 1.0, points or 9)
         return [np.array([a, b]) for a in axis for b in axis]
 
 
@@ -507,7 +515,68 @@ class Eq14:
         return value if math.isfinite(value) else self.PENALTY
 
 
-def _eq14_linear_programme(eq14: Eq14, law: str, coefficients) -> tuple[float, ...] | None:
+def _eq14_search(
+    eq14: Eq14, problem: Problem, law: str, deadband_Pa: float, ls_nonlinear: dict[str, float]
+) -> tuple[float, ...]:
+    """Variable projection on Eq. 14.
+
+    Eq. 14 is a weighted L1 norm of relative errors, convex in the linear coefficients: for given
+    non-linear ones a linear programme gives their exact optimum (``_eq14_linear_programme``; for
+    the linear and polynomial laws that is the global optimum). Its landscape in the non-linear
+    coefficients has narrow curved valleys (the exponent law), so the search over them is:
+
+    1. a fine grid scored cheaply -- linear coefficients by weighted least squares on the
+       comparison points (Eq. 14's weights), then the true Eq. 14 of the result;
+    2. the up to three best local minima of that grid, and the least-squares optimum on all
+       samples, refined with the exact linear programme inside (Brent in 1-D, Nelder-Mead in 2-D).
+    """
+    space = _Space(law)
+    cache: dict[tuple, tuple[float, tuple[float, ...] | None]] = {}
+
+    def exact(u) -> float:
+        key = tuple(np.round(np.asarray(u, dtype=float), 12))
+        if key not in cache:
+            coefficients = _eq14_linear_programme(eq14, law, space.values(u))
+            cache[key] = (eq14(coefficients) if coefficients else Eq14.PENALTY, coefficients)
+        return cache[key][0]
+
+    if not space.names:
+        exact(np.zeros(0))
+        return min(cache.values(), key=lambda item: item[0])[1]
+    surrogate = _LinearSolver(problem.design("points", deadband_Pa), law, False, deadband_Pa,
+                              problem.strain_range, weights=eq14.weight)  # fmt: skip
+    one_d = len(space.names) == 1
+    fine = space.grid(49 if one_d else 15)
+    scores = np.array([eq14(_assemble(law, space.values(u), surrogate.solve(space.values(u)).linear))
+                       for u in fine])  # fmt: skip
+    starts = [fine[i] for i in _local_minima(scores, one_d)[:3]] + [space.unit(ls_nonlinear)]
+    step = 1.0 / 48 if one_d else 1.0 / 14
+    for u in starts:
+        if one_d:
+            a, b = max(u[0] - step, 0.0), min(u[0] + step, 1.0)
+            minimize_scalar(lambda v: exact([v]), bounds=(a, b), method="bounded", options={"xatol": 1e-5})
+        else:
+            simplex = [u, np.clip(u + [step, 0], 0, 1), np.clip(u + [0, step], 0, 1)]
+            minimize(exact, u, method="Nelder-Mead", bounds=[(0.0, 1.0)] * 2,
+                     options={"xatol": 1e-5, "fatol": 1e-7, "maxfev": 40, "initial_simplex": simplex})  # fmt: skip
+    return min(cache.values(), key=lambda item: item[0])[1]
+
+
+def _local_minima(scores: np.ndarray, one_d: bool) -> list[int]:
+    """Indices of the grid's local minima (4-neighbourhood in 2-D), best first."""
+    if one_d:
+        padded = np.r_[np.inf, scores, np.inf]
+        mask = (scores <= padded[:-2]) & (scores <= padded[2:])
+    else:
+        side = int(round(math.sqrt(len(scores))))
+        z = np.pad(scores.reshape(side, side), 1, constant_values=np.inf)
+        c = z[1:-1, 1:-1]
+        mask = ((c <= z[:-2, 1:-1]) & (c <= z[2:, 1:-1]) & (c <= z[1:-1, :-2]) & (c <= z[1:-1, 2:])).ravel()
+    idx = np.nonzero(mask)[0]
+    return [int(i) for i in idx[np.argsort(scores[idx])]]
+
+
+def _eq14_linear_programme(eq14: Eq14, law: str, nonlinear: dict[str, float]) -> tuple[float, ...] | None:
     """The linear coefficients minimising Eq. 14 exactly, the non-linear ones held.
 
     min sum_i w_i t_i  s.t.  -t_i <= y_i - A_i c <= t_i, c in the search box, and for the
@@ -517,7 +586,6 @@ def _eq14_linear_programme(eq14: Eq14, law: str, coefficients) -> tuple[float, .
     if eq14.design.tension_only:
         return None
     params = LAWS[law].params
-    nonlinear = {p: coefficients[i] for i, p in enumerate(params) if p in NONLINEAR[law]}
     A = eq14.design.columns(law, nonlinear)
     y = eq14.points.tension_N - eq14.fixed
     used = eq14.weight > 0
@@ -613,14 +681,13 @@ def fit_law(
     evaluations = solver.evaluations
     if objective == "eq14":
         eq14 = Eq14(problem, law, deadband)
-        if NONLINEAR[law]:
+        if eq14.design.tension_only:  # max(F, 0) is not linear in the coefficients: no LP
             starts = [coefficients] + _eq14_starts(problem, law, eq14, deadband)
             coefficients, _ = _polish_eq14(eq14, min(starts, key=eq14), law)
-        # Eq. 14 is a weighted L1 norm, convex in the linear coefficients: a linear programme
-        # gives their exact optimum (for the linear and polynomial laws, the global one).
-        exact = _eq14_linear_programme(eq14, law, coefficients)
-        if exact is not None and eq14(exact) <= eq14(coefficients):
-            coefficients = exact
+        else:
+            found = _eq14_search(eq14, problem, law, deadband, nonlinear)
+            if eq14(found) <= eq14(coefficients):
+                coefficients = found
         evaluations += eq14.evaluations
     return finish_fit(problem, law, coefficients, deadband, objective, start, evaluations)
 
