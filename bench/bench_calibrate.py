@@ -110,6 +110,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="calibration bench")
     parser.add_argument("--seeds", type=int, default=1, help="noise realisations per case")
     parser.add_argument("--out", default=str(RESULTS))
+    parser.add_argument(
+        "--figures", metavar="PREFIX", help="also write the docs figures (FAM1, exponential-decay truth)"
+    )
     args = parser.parse_args(argv)
     pinned = pin_one_core()
     cases = []
@@ -143,6 +146,12 @@ def main(argv=None) -> int:
     tmp.write_text(json.dumps({"summary": summary, "cases": cases}, indent=1) + "\n")
     tmp.replace(out)
     print(f"wrote {out}")
+    if args.figures:
+        from efam_mujoco.calibrate.report import write_figures
+
+        truth = load_muscle("FAM1", "exponential_decay")
+        for path in write_figures(calibrate(synthesize(truth, seed=0), truth, "all"), args.figures):
+            print(f"wrote {path}")
     return 0
 
 

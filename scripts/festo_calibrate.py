@@ -119,7 +119,7 @@ def identify(recordings, rest_length: float, inner: float, law: str):
                 cache[key] = None
         return cache[key]
 
-    cost = lambda d: fit_for(d).rms_N if fit_for(d) is not None else math.inf  # noqa: E731
+    cost = lambda d: fit_for(d).rms_N if fit_for(d) is not None else 1e12  # noqa: E731  (finite for Brent)
     lo, hi = inner + 2 * MIN_WALL_M, inner * 2.5
     grid = np.linspace(lo, hi, 12)
     costs = [cost(d) for d in grid]

@@ -8,7 +8,8 @@ The procedure (paper Sec. 4.3-4.8, automated):
 3. held-out error: leave one pressure level out (for isobaric strokes; one recording out for
    other data), re-run 1-2 on the rest, predict the level left out; the RMS over all held-out
    samples;
-4. best law: the smallest held-out RMS error (the smallest in-sample one if nothing was held out).
+4. best law: the smallest held-out RMS error (the smallest in-sample one if nothing was held out);
+   within 1 % of it, the law with the fewest coefficients.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 from ..muscle import Muscle, MuscleError
 from ..musclefile import save_muscle
 from ..recordings import Recording
-from ..stress import LAW_NAMES, StressLaw
+from ..stress import LAW_NAMES, LAWS, StressLaw
 from .blocked import BlockedForceFit, blocked_points, fit_blocked
 from .data import Samples, pool
 from .fit import LawFit, Problem, fit_law
@@ -118,16 +119,15 @@ def calibrate(
     fit_deadband: bool = False,
     objective: str | None = None,
     heldout: bool = True,
-    heldout_objective: str = "lsq",
+    heldout_objective: str | None = None,
     n: int = 5,
 ) -> Calibration:
     """Calibrate ``muscle`` (its geometry: rest length and diameter, bladder volume; its
     ``tension_only``) on recordings. ``estimate_theta=False`` keeps the muscle's braid angle
     (the paper's choice for its final fits); ``fit_deadband=True`` refits the dead band with each
     law instead of keeping the Sec. 4.3 estimate; ``objective`` as in :func:`fit.fit_law`.
-    ``heldout_objective``: the criterion the held-out refits use; least squares by default, because
-    the held-out error is an RMS in newtons (what least squares minimises) and it measures how well
-    each law's FORM predicts a pressure it has not seen; ``None`` = the same as ``objective``.
+    ``heldout_objective``: the criterion of the held-out refits; ``None`` (default) = the same as
+    ``objective``, so the held-out error measures exactly the procedure that made the fits.
     """
     t0 = time.perf_counter()
     names = resolve_laws(laws)
@@ -143,15 +143,27 @@ def calibrate(
         else {}
     )
     scores = {law: held.get(law) for law in names}
-    if all(v is not None and math.isfinite(v) for v in scores.values()) and scores:
-        best = min(names, key=lambda law: scores[law])
-    else:
-        best = min(names, key=lambda law: fits[law].rms_N)
+    best = best_law(names, scores, fits)
     return Calibration(
         deadband_Pa=blocked.deadband_Pa, theta_rest_deg=base.theta_rest_deg, blocked=blocked, fits=fits,
         heldout_rms_N=scores, best_law=best, seconds=time.perf_counter() - t0, problem=problem,
         geometry_theta_rest_deg=muscle.theta_rest_deg,
     )  # fmt: skip
+
+
+#: Laws whose held-out errors are within this fraction of the best are a tie.
+TIE_FRACTION = 0.01
+
+
+def best_law(names, heldout: dict, fits: dict[str, LawFit]) -> str:
+    """Smallest held-out RMS (in-sample RMS when nothing was held out); among laws within 1 % of
+    it, the one with the fewest coefficients (the linear law before a four-coefficient law)."""
+    scores = heldout if heldout and all(v is not None and math.isfinite(v) for v in heldout.values()) else {
+        law: fits[law].rms_N for law in names
+    }  # fmt: skip
+    lowest = min(scores[law] for law in names)
+    tied = [law for law in names if scores[law] <= lowest * (1 + TIE_FRACTION)]
+    return min(tied, key=lambda law: (len(LAWS[law].params), scores[law]))
 
 
 def folds(samples: Samples) -> list[np.ndarray]:

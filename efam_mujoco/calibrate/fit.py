@@ -527,7 +527,7 @@ def _eq14_search(
 
     1. a fine grid scored cheaply -- linear coefficients by weighted least squares on the
        comparison points (Eq. 14's weights), then the true Eq. 14 of the result;
-    2. the up to three best local minima of that grid, and the least-squares optimum on all
+    2. the two best local minima of that grid, and the least-squares optimum on all
        samples, refined with the exact linear programme inside (Brent in 1-D, Nelder-Mead in 2-D).
     """
     space = _Space(law)
@@ -549,16 +549,16 @@ def _eq14_search(
     fine = space.grid(49 if one_d else 15)
     scores = np.array([eq14(_assemble(law, space.values(u), surrogate.solve(space.values(u)).linear))
                        for u in fine])  # fmt: skip
-    starts = [fine[i] for i in _local_minima(scores, one_d)[:3]] + [space.unit(ls_nonlinear)]
+    starts = [fine[i] for i in _local_minima(scores, one_d)[:2]] + [space.unit(ls_nonlinear)]
     step = 1.0 / 48 if one_d else 1.0 / 14
     for u in starts:
         if one_d:
             a, b = max(u[0] - step, 0.0), min(u[0] + step, 1.0)
-            minimize_scalar(lambda v: exact([v]), bounds=(a, b), method="bounded", options={"xatol": 1e-5})
+            minimize_scalar(lambda v: exact([v]), bounds=(a, b), method="bounded", options={"xatol": 2e-4})
         else:
             simplex = [u, np.clip(u + [step, 0], 0, 1), np.clip(u + [0, step], 0, 1)]
             minimize(exact, u, method="Nelder-Mead", bounds=[(0.0, 1.0)] * 2,
-                     options={"xatol": 1e-5, "fatol": 1e-7, "maxfev": 40, "initial_simplex": simplex})  # fmt: skip
+                     options={"xatol": 1e-5, "fatol": 1e-7, "maxfev": 30, "initial_simplex": simplex})  # fmt: skip
     return min(cache.values(), key=lambda item: item[0])[1]
 
 

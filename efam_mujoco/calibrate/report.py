@@ -80,7 +80,8 @@ def summary(cal: Calibration) -> str:
             f"{cal.deadband_Pa / 1e3:.2f} kPa, theta_rest {cal.theta_rest_deg:.3f} deg (muscle file had "
             f"{cal.geometry_theta_rest_deg:.3f} deg), line RMS {b.rms_N:.3f} N, outliers rejected: "
             f"{', '.join(rejected) if rejected else 'none'}",
-            f"best law (smallest held-out RMS): {cal.best_law}; calibration took {cal.seconds:.2f} s",
+            f"best law (smallest held-out RMS; fewest coefficients within 1 %): {cal.best_law}; "
+            f"calibration took {cal.seconds:.2f} s",
         ]
     )
 
