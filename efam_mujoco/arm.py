@@ -32,6 +32,7 @@ The MuJoCo model (:func:`build_spec`):
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from collections.abc import Sequence
@@ -625,26 +626,168 @@ def write_models(directory: Path = MODELS_DIR) -> list[Path]:
     return written
 
 
+# ----------------------------------------------------------------- equilibrium, MuJoCo vs CC
+
+
+def settle(
+    model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, t_max_s: float = 6.0, vel_tol: float = 1e-6
+):
+    """Hold the pressures and step until the arm is still (or ``t_max_s`` of simulated time);
+    returns whether it settled. Raises if the state stops being finite."""
+    data.ctrl[:] = np.ravel(pressures_Pa)
+    while data.time < t_max_s:
+        for _ in range(100):
+            mujoco.mj_step(model, data)
+        if not np.all(np.isfinite(data.qpos)):
+            raise FloatingPointError(f"arm state not finite at t = {data.time:.3f} s")
+        if np.abs(data.qvel).max() < vel_tol:
+            return True
+    return False
+
+
+def tip_in_base(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """Tip site position in the arm's base frame."""
+    return base_frame_position(model, data, data.site("tip").xpos)
+
+
+def gravity_in_base(arm: ArmSpec) -> np.ndarray:
+    """Gravity (m/s^2) expressed in the base frame, for :func:`statics.solve_arm`."""
+    if not arm.gravity:
+        return np.zeros(3)
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, np.asarray(ORIENTATIONS[arm.orientation]))
+    return rotation.reshape(3, 3).T @ np.array([0.0, 0.0, -9.81])
+
+
+def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]]) -> dict:
+    """Tip position at rest under constant pressures: the MuJoCo arm and the constant-curvature
+    statics (with the arm's own weight and payload when gravity is on), in the base frame."""
+    from .statics import solve_arm
+
+    model = build_model(arm)
+    data = mujoco.MjData(model)
+    settled = settle(model, data, [p for section in pressures_Pa for p in section], t_max_s=15.0)
+    simulated = tip_in_base(model, data)
+    state = solve_arm(
+        arm.sections,
+        pressures_Pa,
+        gravity_m_s2=gravity_in_base(arm),
+        point_masses=point_masses(arm),
+    )
+    predicted = state.tip_position_m
+    arm_length = sum(s.rest_length_m for s in arm.sections)
+    return {
+        "settled": bool(settled),
+        "tip_mujoco_m": simulated.tolist(),
+        "tip_statics_m": np.asarray(predicted).tolist(),
+        "difference_pct_of_rest_length": float(100 * np.linalg.norm(simulated - predicted) / arm_length),
+        "section_bend_deg": [math.degrees(sec.bend_angle_rad) for sec in state.sections],
+    }
+
+
+# ------------------------------------------------------------------------------------- CLI
+
+
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--write-models", action="store_true", help="regenerate models/arm_*.xml from the builder"
     )
-    parser.add_argument("--models-dir", type=Path, default=MODELS_DIR, help="where to write them")
+    parser.add_argument("--models-dir", type=Path, default=MODELS_DIR, help="where --write-models writes")
+    parser.add_argument(
+        "--muscle",
+        nargs="+",
+        default=["FAM1"],
+        help="preset or muscle file per muscle (one value: the same muscle everywhere)",
+    )
+    parser.add_argument("--stress", help="stress law (default: each file's default law)")
+    parser.add_argument("--sections", type=int, default=1, help="number of sections (default 1)")
+    parser.add_argument("--muscles-per-section", type=int, default=3, help="muscles per section (>= 3)")
+    parser.add_argument("--radius-mm", type=float, default=20.0, help="muscle placement radius, mm")
+    parser.add_argument("--disks", type=int, default=4, help="discretisation disks per section")
+    parser.add_argument("--orientation", choices=sorted(ORIENTATIONS), default="upright")
+    parser.add_argument("--payload-kg", type=float, default=0.0, help="tip payload, kg")
+    parser.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    parser.add_argument(
+        "--pressure-lag-s", type=float, default=0.05, help="valve/tube time constant, s (0: none)"
+    )
+    parser.add_argument("--xml", type=Path, help="write the arm's MJCF to this file")
+    parser.add_argument(
+        "--pressures-kPa",
+        type=float,
+        nargs="+",
+        help="one pressure per muscle, base section first: print the tip at rest, MuJoCo vs statics",
+    )
+    parser.add_argument("--json", type=Path, help="write the equilibrium as JSON to this file")
+
+
+def arm_from_args(args) -> ArmSpec:
+    count = args.sections * args.muscles_per_section
+    if args.sections < 1 or args.muscles_per_section < 3:
+        raise ValueError("--sections must be >= 1 and --muscles-per-section >= 3")
+    if len(args.muscle) not in (1, count):
+        raise ValueError(f"--muscle: give 1 muscle or one per muscle ({count}), got {len(args.muscle)}")
+    names = args.muscle * count if len(args.muscle) == 1 else args.muscle
+    loaded = {name: load_muscle(name, args.stress) for name in set(names)}
+    m = args.muscles_per_section
+    sections = tuple(
+        SectionSpec(
+            muscles=tuple(loaded[n] for n in names[j * m : (j + 1) * m]),
+            radius_m=args.radius_mm / 1e3,
+            disks=args.disks,
+        )
+        for j in range(args.sections)
+    )
+    return ArmSpec(
+        sections=sections,
+        orientation=args.orientation,
+        pressure_tau_s=args.pressure_lag_s,
+        payload_kg=args.payload_kg,
+        gravity=not args.no_gravity,
+        name=f"arm_{args.sections}x{m}",
+    )
 
 
 def _run(args) -> int:
-    if not args.write_models:
-        print("nothing to do: pass --write-models", file=sys.stderr)
+    if args.write_models:
+        for path in write_models(args.models_dir):
+            print(path)
+        return 0
+    spec = arm_from_args(args)
+    if args.xml:
+        tmp = args.xml.with_name(args.xml.name + ".tmp")
+        tmp.write_text(arm_xml(spec))
+        tmp.replace(args.xml)
+        print(f"wrote {args.xml}")
+    if args.pressures_kPa:
+        count = sum(len(s.muscles) for s in spec.sections)
+        pressures = np.asarray(args.pressures_kPa) * 1e3
+        if pressures.size != count or not np.all(np.isfinite(pressures)) or np.any(pressures < 0):
+            raise ValueError(f"--pressures-kPa: need {count} finite pressures >= 0, got {args.pressures_kPa}")
+        per_section = np.split(pressures, len(spec.sections))
+        result = equilibrium(spec, per_section)
+        print(
+            f"tip at rest, base frame (mm): MuJoCo {np.round(1e3 * np.array(result['tip_mujoco_m']), 2)}, "
+            f"constant-curvature statics {np.round(1e3 * np.array(result['tip_statics_m']), 2)}; "
+            f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
+        )
+        if not result["settled"]:
+            print("warning: the arm had not come to rest after 15 s of simulated time", file=sys.stderr)
+        if args.json:
+            tmp = args.json.with_name(args.json.name + ".tmp")
+            tmp.write_text(json.dumps(result, indent=1) + "\n")
+            tmp.replace(args.json)
+    if not (args.xml or args.pressures_kPa):
+        print("nothing to do: pass --xml FILE, --pressures-kPa ..., or --write-models", file=sys.stderr)
         return 2
-    for path in write_models(args.models_dir):
-        print(path)
     return 0
 
 
 def register_cli(subparsers) -> None:
     """``efam arm --write-models`` (for efam_mujoco.cli.COMMAND_MODULES)."""
     parser = subparsers.add_parser(
-        "arm", help="EFAM continuum arm models", description=__doc__.splitlines()[0]
+        "arm",
+        help="build a continuum arm; its tip at rest under pressures, MuJoCo vs statics",
+        description=__doc__.splitlines()[0],
     )
     _add_arguments(parser)
     parser.set_defaults(run=_run)

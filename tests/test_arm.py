@@ -18,18 +18,11 @@ STATIC = dict(gravity=False, pressure_tau_s=0.0, axial_damping_N_s_per_m=40.0, b
 
 
 def settle(model, data, pressures, t_max=6.0, vel_tol=1e-6):
-    data.ctrl[:] = np.ravel(pressures)
-    while data.time < t_max:
-        for _ in range(100):
-            mujoco.mj_step(model, data)
-        if np.abs(data.qvel).max() < vel_tol:
-            break
-    assert np.all(np.isfinite(data.qpos))
+    arm.settle(model, data, pressures, t_max_s=t_max, vel_tol=vel_tol)
     return data
 
 
-def tip_in_base(model, data):
-    return arm.base_frame_position(model, data, data.site("tip").xpos)
+tip_in_base = arm.tip_in_base
 
 
 def warnings(data):

@@ -47,3 +47,28 @@ def test_bad_input_is_one_clear_line(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_arm_tip_mujoco_beside_statics(tmp_path, capsys):
+    out, xml = tmp_path / "arm.json", tmp_path / "arm.xml"
+    argv = ["arm", "--no-gravity", "--pressure-lag-s", "0", "--pressures-kPa", "400", "250", "250"]
+    assert main([*argv, "--json", str(out), "--xml", str(xml)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["settled"] and doc["difference_pct_of_rest_length"] < 2.0
+    assert doc["tip_mujoco_m"][0] < 0  # the higher-pressure muscle at 0 deg pushes the tip to -x
+    assert "efam.muscle" in xml.read_text()
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["arm", "--pressures-kPa", "100", "200"], "need 3 finite pressures"),
+        (["arm", "--muscles-per-section", "2", "--xml", "x.xml"], "--muscles-per-section"),
+        (["arm", "--muscle", "FAM1", "FAM2", "--xml", "x.xml"], "--muscle: give 1 muscle or one per muscle"),
+        (["arm"], None),
+    ],
+)
+def test_arm_bad_input(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert (message or "nothing to do") in err and "Traceback" not in err
