@@ -32,6 +32,11 @@ from .model import Refit, linearise, refit
 from .segment import Labels, label
 from .select import Engine, Fit, pays, search
 
+#: Parameter corrections allowed while candidates are fitted, in the parameters' natural sizes
+#: (``model.scales``: 0.25 deg of braid angle, 5 kPa of dead band, 5 % of the others, or less
+#: where that would move the force by more than 10 N RMS).
+SPAN = 4.0
+
 __all__ = [
     "Diagnosis", "diagnose", "register_cli", "EffectModel", "apply", "LIBRARY", "EFFECT_NAMES",
 ]  # fmt: skip
@@ -49,6 +54,7 @@ class Diagnosis:
     noise_N: float
     located: dict
     candidates: list[dict]
+    decisions: dict  # every test made: {"friction": {...}, "friction + drift": {...}}
     refit: Refit
     muscle_before: Muscle
     muscle_after: Muscle
@@ -81,6 +87,7 @@ class Diagnosis:
             "noise_N": self.noise_N,
             "located": _jsonable(self.located),
             "candidates": self.candidates,
+            "decisions": self.decisions,
             "refit": {
                 "law": self.refit.law,
                 "rms_by_law_N": self.refit.by_law,
@@ -143,20 +150,24 @@ def diagnose(
     fitted = refit(muscle, recordings) if laws is None else refit(muscle, recordings, laws)
     ctx = Context.from_recordings(recordings, fitted.muscle)
     labels = label(ctx.t, ctx.x, ctx.P, ctx.starts)
-    lin = linearise(fitted.muscle, ctx.P, ctx.L, muscle)
+    lin = linearise(fitted.muscle, ctx.P, ctx.L, muscle, span=SPAN)
     force = np.concatenate([r.force_N for r in recordings])
     engine = Engine(ctx, lin, force, labels)
     noise, base, kept, singles, notes = search(engine, tuple(candidates), max_effects)
     residual = force - base.prediction
     located = locate(ctx, labels, residual, noise)
 
-    muscle_before = lin.muscle_for(base.du)
+    muscle_before, _ = _polish(recordings, base, lin, force, labels)
     predicted_before = muscle_before.push(ctx.P, ctx.L)
     final = kept[-1] if kept else base
-    muscle_after = lin.muscle_for(final.du)
-    found = _found(kept, base, final, noise, ctx.n)
-    after_model = EffectModel(muscle_after, [(e["name"], e["parameters"]) for e in found])
-    predicted_after = np.concatenate([after_model.push_recording(r) for r in recordings])
+    muscle_after, final_values = _polish(recordings, final, lin, force, labels)
+    found = _found(kept, base, final_values, noise, ctx.n)
+    predicted_after = np.concatenate(
+        [
+            EffectModel(muscle_after, _for_recording(found, i)).push_recording(r)
+            for i, r in enumerate(recordings)
+        ]
+    )
     rms = lambda r: float(np.sqrt(np.mean(r**2)))  # noqa: E731
     table = []
     for name, fit in sorted(singles.items(), key=lambda kv: kv[1].heldout_rms):
@@ -175,6 +186,7 @@ def diagnose(
         noise_N=noise,
         located=located,
         candidates=table,
+        decisions=_jsonable(notes),
         refit=fitted,
         muscle_before=muscle_before,
         muscle_after=muscle_after,
@@ -186,22 +198,73 @@ def diagnose(
     )  # fmt: skip
 
 
-def _found(kept: list[Fit], base: Fit, final: Fit, noise: float, n: int) -> list[dict]:
+def _polish(recordings, fit: Fit, lin, force, labels, iterations: int = 4):
+    """Gauss-Newton with step control on the model's parameters, the fit's effects (shapes kept)
+    re-fitted at every trial point: a step is taken only if the EXACT replay (not its
+    linearisation) fits better, else halved. Starts from the re-fit muscle with the effects fitted
+    alone. Returns the muscle and the effect values fitted with it."""
+    effects = [get(name) for name in fit.names]
+    shapes = [fit.shapes[name] for name in fit.names]
+
+    def effects_at(muscle):
+        ctx = Context.from_recordings(recordings, muscle)
+        values = {}
+        if effects:
+            step = linearise(muscle, ctx.P, ctx.L, lin.muscle, span=0.0)
+            values = (
+                Engine(ctx, step, force, labels)
+                .candidate(effects, shapes, folds=False, with_model=False)
+                .values
+            )
+        predicted = ctx.base + sum((e.force(ctx, values[e.name]) for e in effects), np.zeros(ctx.n))
+        return float(np.sum((force - predicted) ** 2)), values, ctx
+
+    muscle = lin.muscle
+    best, values, ctx = effects_at(muscle)
+    for _ in range(iterations):
+        step = linearise(muscle, ctx.P, ctx.L, lin.muscle, span=2.0)
+        du = Engine(ctx, step, force, labels).candidate(effects, shapes, folds=False).du
+        moved = False
+        for alpha in (1.0, 0.5, 0.25):
+            trial = step.muscle_for(alpha * du)
+            rss, trial_values, trial_ctx = effects_at(trial)
+            if rss < best * (1 - 1e-6):
+                muscle, best, values, ctx, moved = trial, rss, trial_values, trial_ctx, True
+                break
+        if not moved:
+            break
+    return muscle, values
+
+
+def _found(kept: list[Fit], base: Fit, final_values: dict, noise: float, n: int) -> list[dict]:
     """The kept effects, most important first, each with the held-out RMS it takes away."""
     out = []
     previous = base
     for fit in kept:
         name = fit.names[-1]
         effect = get(name)
-        values = {p.key: _clean(final.values[name][p.key], p) for p in effect.params}
+        values = {p.key: _clean(final_values[name][p.key], p) for p in effect.params}
+        values.update({k: v for k, v in final_values[name].items() if k.endswith("_by_recording")})
         _, info = pays(fit, previous, noise, n)
+        before = fit.before_heldout_rms if fit.before_heldout_rms is not None else previous.heldout_rms
         out.append({
             "name": name, "summary": effect.summary, "equation": effect.equation,
             "parameters": values, "identifiable": fit.identifiable[name],
-            "heldout_rms_before_N": previous.heldout_rms, "heldout_rms_after_N": fit.heldout_rms,
+            "heldout_rms_before_N": before, "heldout_rms_after_N": fit.heldout_rms,
             "delta_bic": info["delta_bic"],
         })  # fmt: skip
         previous = fit
+    return out
+
+
+def _for_recording(found: list[dict], i: int) -> list[tuple[str, dict]]:
+    """The effects with recording ``i``'s own per-recording amplitudes (e.g. its zero offset)."""
+    out = []
+    for e in found:
+        values = dict(e["parameters"])
+        for key in [k for k in values if k.endswith("_by_recording")]:
+            values[key[: -len("_by_recording")]] = values.pop(key)[i]
+        out.append((e["name"], values))
     return out
 
 

@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import lfilter
 
 from ..muscle import Muscle
 from ..recordings import Recording
@@ -42,17 +43,23 @@ def segments(starts: np.ndarray, n: int):
 
 def lag(t: np.ndarray, u: np.ndarray, tau: float, starts=(0,)) -> np.ndarray:
     """First-order lag, exact for a held input (MuJoCo ``filterexact``): y_0 = u_0 at each start,
-    y_k = a_k y_{k-1} + (1 - a_k) u_k with a_k = exp(-(t_k - t_{k-1}) / tau). Vectorised for any
-    sampling: within blocks spanning at most 30 tau, y_k = A_k (y_b + sum_j (1 - a_j) u_j / A_j)
-    with A_k = exp(-(t_k - t_b) / tau)."""
+    y_k = a_k y_{k-1} + (1 - a_k) u_k with a_k = exp(-(t_k - t_{k-1}) / tau).
+
+    Uniform sampling runs as a linear filter; otherwise, within blocks spanning at most 500 tau,
+    y_k = A_k (y_b + sum_j (1 - a_j) u_j / A_j) with A_k = exp(-(t_k - t_b) / tau)."""
     out = np.empty_like(u, dtype=float)
     for b, e in segments(np.asarray(starts), len(u)):
         tt, uu, yy = t[b:e], u[b:e], out[b:e]
+        dt = np.diff(tt)
+        if len(dt) and np.ptp(dt) <= 1e-6 * abs(dt[0]):
+            a = math.exp(-float(dt.mean()) / tau)
+            yy[:] = lfilter([1.0 - a], [1.0, -a], uu, zi=[a * uu[0]])[0]
+            continue
         y0 = float(uu[0])
         yy[0] = y0
         k = 1
         while k < len(tt):
-            stop = max(int(np.searchsorted(tt, tt[k - 1] + 30.0 * tau, side="right")), k + 1)
+            stop = max(int(np.searchsorted(tt, tt[k - 1] + 500.0 * tau, side="right")), k + 1)
             s = slice(k, stop)
             A = np.exp(-(tt[s] - tt[k - 1]) / tau)
             a = np.exp(-np.diff(tt[k - 1 : stop]) / tau)
@@ -249,6 +256,7 @@ class Effect:
     state: tuple[str, ...] = ()
     plugin: str = ""
     signature: str = ""  # what it leaves in the residual, in words
+    per_recording: bool = False  # one amplitude per recording (its single linear parameter)
 
     @property
     def linear(self) -> tuple[Param, ...]:
@@ -276,7 +284,11 @@ class Effect:
 
     def force(self, ctx: Context, values: dict[str, float]) -> np.ndarray:
         fixed, cols = self.design(ctx, {p.key: values[p.key] for p in self.shapes})
-        a = np.array([values[p.key] for p in self.linear])
+        if self.per_recording:
+            key = self.linear[0].key
+            a = np.array(values.get(f"{key}_by_recording") or [values[key]] * cols.shape[1])
+        else:
+            a = np.array([values[p.key] for p in self.linear])
         return fixed + (cols @ a if len(a) else 0.0)
 
     def initial_state(self) -> list[float]:
@@ -427,10 +439,13 @@ class BraidCompliance(Effect):
     def __init__(self):
         super().__init__(
             name="braid_compliance",
-            summary="threads that stretch under the pressure load (B grows with P)",
-            equation="dF = (b1 G + b2 G^2) dF/d(ln B),  G = max(P - P_db, 0) in MPa",
+            summary="threads that stretch under their load (thread tension ~ hoop force ~ P R_o)",
+            equation=(
+                "dF = (b1 q + b2 q^2) dF/d(ln B),  q = max(P - P_db, 0)[MPa] R_o(L)/R_rest "
+                "(the thread strain is b1 q + b2 q^2)"
+            ),
             params=(
-                Param("b1_per_MPa", 0.0, 0.2, meaning="thread strain per MPa of gauge pressure"),
+                Param("b1_per_MPa", 0.0, 0.2, meaning="thread strain per MPa of hoop load"),
                 Param("b2_per_MPa2", -0.2, 0.2, meaning="its curvature (crimp, stiffening)"),
             ),
             plugin="stateless; evaluates Eq. 2 with the thread length scaled by 1 +- h",
@@ -438,16 +453,17 @@ class BraidCompliance(Effect):
         )
 
     def _design(self, ctx, shape):
-        G = np.maximum(ctx.P - ctx.muscle.deadband_Pa, 0.0) / 1e6
+        m = ctx.muscle
+        q = np.maximum(ctx.P - m.deadband_Pa, 0.0) / 1e6 * m.outer_radius(ctx.L) / m.rest_outer_radius_m
         d = ctx.dF_dB()
-        return np.zeros(ctx.n), _gate(ctx, np.column_stack([G * d, G * G * d]))
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([q * d, q * q * d]))
 
     def step(self, v, state, s: Sample) -> float:
         m = s.muscle
-        G = max(s.P - m.deadband_Pa, 0.0) / 1e6
+        q = max(s.P - m.deadband_Pa, 0.0) / 1e6 * float(m.outer_radius(s.L)) / m.rest_outer_radius_m
         h = 1e-6
         slope = -(tension_with_thread(m, s.P, s.L, 1 + h) - tension_with_thread(m, s.P, s.L, 1 - h)) / (2 * h)
-        force = (v["b1_per_MPa"] * G + v["b2_per_MPa2"] * G * G) * float(slope)
+        force = (v["b1_per_MPa"] * q + v["b2_per_MPa2"] * q * q) * float(slope)
         return force if s.engaged else 0.0
 
 
@@ -562,10 +578,14 @@ class ForceOffset(Effect):
             params=(Param("offset_N", -100.0, 100.0, meaning="load-cell reading at zero force"),),
             plugin="not an actuator force: add it to the simulated load-cell reading",
             signature="a constant residual, visible where the model force is zero",
+            per_recording=True,  # a load cell is zeroed (or not) before each test
         )
 
     def _design(self, ctx, shape):
-        return np.zeros(ctx.n), np.ones((ctx.n, 1))
+        cols = np.zeros((ctx.n, len(ctx.starts)))
+        for r, (b, e) in enumerate(segments(ctx.starts, ctx.n)):
+            cols[b:e, r] = 1.0
+        return np.zeros(ctx.n), cols
 
     def step(self, v, state, s: Sample) -> float:
         return v["offset_N"]
@@ -600,7 +620,14 @@ def check_values(name: str, values: dict) -> dict[str, float]:
         if not p.lo <= v <= p.hi:
             raise ValueError(f"effect '{name}': parameter '{p.key}' = {v:g} is outside [{p.lo:g}, {p.hi:g}]")
         out[p.key] = float(v)
-    unknown = sorted(set(values) - {p.key for p in effect.params})
+    if effect.per_recording and f"{effect.linear[0].key}_by_recording" in values:
+        per = values[f"{effect.linear[0].key}_by_recording"]
+        if not isinstance(per, (list, tuple)) or not all(isinstance(v, (int, float)) for v in per):
+            raise ValueError(
+                f"effect '{name}': '{effect.linear[0].key}_by_recording' must be a list of numbers"
+            )
+        out[f"{effect.linear[0].key}_by_recording"] = [float(v) for v in per]
+    unknown = sorted(set(values) - set(out))
     if unknown:
         raise ValueError(f"effect '{name}': unknown parameter '{unknown[0]}'")
     return out

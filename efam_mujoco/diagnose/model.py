@@ -175,7 +175,11 @@ class Linearised:
             return self.muscle
 
 
-def linearise(muscle: Muscle, P, L, nominal: Muscle, span: float = 4.0) -> Linearised:
+def linearise(muscle: Muscle, P, L, nominal: Muscle, span: float = 2.0, reach_N: float = 10.0) -> Linearised:
+    """The Jacobian around ``muscle``. A parameter's unit is its natural size (``scales``) or, if
+    that moves the force by more than ``reach_N`` RMS, the change that moves it by ``reach_N``:
+    the linearisation is trusted only that far (a contractile muscle near 3 L^2 = B^2 is very
+    sensitive to its braid angle). A parameter at an edge of validity is differenced one-sided."""
     law = muscle.stress.name
     v0 = vector(muscle)
     s = scales(v0)
@@ -183,14 +187,28 @@ def linearise(muscle: Muscle, P, L, nominal: Muscle, span: float = 4.0) -> Linea
     hard_lo, hard_hi = bounds(nominal, law, deadband_hi)
     cols, keep = [], []
     h = 0.01
+    base = muscle.push(P, L)
     for i in range(len(v0)):
-        e = h * s * (np.arange(len(v0)) == i)
-        try:
-            col = (build(muscle, law, v0 + e).push(P, L) - build(muscle, law, v0 - e).push(P, L)) / (2 * h)
-        except ValueError:
-            continue  # a parameter at an edge of validity stays fixed
-        if np.sqrt(np.mean(col**2)) > 1e-9:
-            cols.append(col)
+        col = None
+        for kind in ("central", "forward", "backward"):
+            e = h * s * (np.arange(len(v0)) == i)
+            try:
+                if kind == "central":
+                    col = (build(muscle, law, v0 + e).push(P, L) - build(muscle, law, v0 - e).push(P, L)) / (
+                        2 * h
+                    )
+                elif kind == "forward":
+                    col = (build(muscle, law, v0 + e).push(P, L) - base) / h
+                else:
+                    col = (base - build(muscle, law, v0 - e).push(P, L)) / h
+                break
+            except ValueError:
+                continue
+        size = float(np.sqrt(np.mean(col**2))) if col is not None else 0.0
+        if size > 1e-9:
+            shrink = min(1.0, reach_N / size)
+            s[i] *= shrink
+            cols.append(col * shrink)
             keep.append(i)
     keep = np.array(keep, dtype=int)
     lo = np.minimum(np.maximum(-span, (hard_lo[keep] - v0[keep]) / s[keep]), 0.0)

@@ -40,7 +40,7 @@ def text(d: Diagnosis) -> str:
     for i, e in enumerate(d.effects, 1):
         out.append(f"Found {i}: {e['name']} -- {e['summary']}")
         out.append(f"  equation: {e['equation']}")
-        params = ", ".join(f"{k} = {v:.4g}" for k, v in e["parameters"].items())
+        params = ", ".join(_value(k, v) for k, v in e["parameters"].items())
         out.append(f"  parameters: {params}")
         out.append(f"  held-out RMS {e['heldout_rms_before_N']:.3f} N -> {e['heldout_rms_after_N']:.3f} N")
     out.append("")
@@ -53,6 +53,12 @@ def text(d: Diagnosis) -> str:
     return "\n".join(out) + "\n"
 
 
+def _value(key, value) -> str:
+    if isinstance(value, list):
+        return f"{key} = [" + ", ".join(f"{v:.4g}" for v in value) + "]"
+    return f"{key} = {value:.4g}"
+
+
 def plugin_config(d: Diagnosis) -> dict[str, str]:
     """Config keys a plugin would take for the identified effects (see docs/diagnosis.md)."""
     keys: dict[str, str] = {}
@@ -63,7 +69,7 @@ def plugin_config(d: Diagnosis) -> dict[str, str]:
         if e["name"] == "force_offset":
             continue  # a sensor error: the rig's load cell adds it, not the actuator
         for k, v in e["parameters"].items():
-            keys[f"{e['name']}.{k}"] = repr(float(v))
+            keys[f"{e['name']}.{k}"] = repr(float(v))  # force_offset (the only list) is skipped
     return keys
 
 

@@ -15,7 +15,11 @@ rate of the test is the pressure rate). On the driver, smoothed over about half 
 * ``rate_class`` 0/1 = slow/fast when the moving cycles run at clearly different rates.
 
 Held-out folds keep whole cycles together: fold = (level + cycle_in_level) mod K, so every fold
-holds out cycles of several levels and several positions (first, later) in the test order.
+holds out cycles of several levels and several positions (first, later) in the test order. When
+each of several recordings holds a single cycle (one pressure sweep per held length), whole
+half-cycles are held out instead: the rising branch of every other recording and the falling branch
+of the others form one fold, the rest the other, so every length and both directions are trained
+on. A single recording with a single cycle falls back to alternating tenths of the test.
 """
 
 from __future__ import annotations
@@ -77,6 +81,9 @@ def label(t, x, P, starts) -> Labels:
     hold = np.zeros(n, dtype=bool)
     cycle_count = 0
     excursions = []  # (cycle index, sample slice of the excursion, recording)
+    branch = np.zeros(n, dtype=int)
+    recording = np.zeros(n, dtype=int)
+    per_recording_cycles: list[int] = []
     for b, e in segments(np.asarray(starts), n):
         tt = t[b:e]
         w = _window(tt)
@@ -117,6 +124,13 @@ def label(t, x, P, starts) -> Labels:
             excursions.append((cycle_count + m, slice(b + i, b + j)))
         out["cycle"][b:e] = cycle_count + cyc
         cycle_count += max(len(found), 1)
+        # branch within each cycle: rising up to the driver's peak, falling after it
+        for c in np.unique(cyc):
+            idx = np.flatnonzero(cyc == c)
+            peak = idx[int(np.argmax(s[idx]))]
+            branch[b + idx] = np.where(idx <= peak, 0, 1)
+        recording[b:e] = len(per_recording_cycles)
+        per_recording_cycles.append(max(len(found), 1))
     cycle = out["cycle"]
     n_cycles = cycle_count
     # level of each cycle: median pressure over its excursion (or over the cycle)
@@ -152,7 +166,13 @@ def label(t, x, P, starts) -> Labels:
     edges = np.flatnonzero(np.diff(np.r_[0, hold.astype(int), 0]))
     for k, (s0, s1) in enumerate(zip(edges[::2], edges[1::2])):
         hold_id[s0:s1] = k
-    fold, n_folds = _folds(cycle, level, cycle_in_level, n_cycles, t)
+    if len(per_recording_cycles) >= 2 and max(per_recording_cycles) == 1:
+        # one cycle per recording (e.g. one pressure sweep per held length): hold out half-cycles,
+        # the rising branch of every other recording and the falling branch of the rest, so that
+        # every recording and both branches stay in training
+        fold, n_folds = (recording + branch) % 2, 2
+    else:
+        fold, n_folds = _folds(cycle, level, cycle_in_level, n_cycles, t)
     return Labels(
         driver=out["driver"], rate=rate, direction=out["direction"], moving=moving, hold=hold,
         hold_id=hold_id, cycle=cycle, level=level, levels_Pa=levels, cycle_in_level=cycle_in_level,

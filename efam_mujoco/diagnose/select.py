@@ -18,8 +18,10 @@ Information criterion. BIC on the noise-normalised residual: ``chi2 = RSS / nois
 ``BIC = chi2 + k ln n`` with k the effect's identifiable parameters. With ~20 000 samples a
 systematic residual of a fraction of the noise is already "significant", so an effect is kept
 only when it also matters: it must lower the held-out RMS by at least ``MIN_GAIN`` and remove at
-least ``MIN_EXCESS_CUT`` of the held-out excess over the noise floor; a second effect is added only
-when it passes the same tests against the first.
+least ``MIN_EXCESS_CUT`` of the held-out excess over the noise floor. A further effect is added
+while it lowers the held-out RMS left by the kept ones by ``SECOND_GAIN`` (and BIC agrees), up to
+``max_effects``. The thresholds were set on synthetic recordings with seeds 5000-5067, not on the
+benchmark's.
 """
 
 from __future__ import annotations
@@ -36,10 +38,11 @@ from .effects import Context, Effect, get, high_frequency_noise
 from .model import Linearised
 from .segment import Labels
 
-MIN_DELTA_BIC = 30.0
-MIN_GAIN = 0.08  # held-out RMS must fall by 8 %
+MIN_DELTA_BIC = 100.0
+MIN_GAIN = 0.03  # held-out RMS must fall by 3 %
 MIN_EXCESS_CUT = 0.3  # and lose 30 % of its excess over the noise floor
 MIN_EXCESS_RATIO = 1.08  # the baseline held-out RMS must stand this far above the noise floor
+SECOND_GAIN = 0.03  # a further effect must lower the held-out RMS left by the others by 3 %
 
 
 @dataclass
@@ -56,6 +59,7 @@ class Fit:
     heldout_n: int
     prediction: np.ndarray  # linearised prediction of the force, original sample order
     identifiable: dict[str, list[str]] = field(default_factory=dict)
+    before_heldout_rms: float | None = None  # held-out RMS of the model it was added to
 
     @property
     def heldout_rms(self) -> float:
@@ -98,7 +102,15 @@ class Engine:
 
     @staticmethod
     def _solve(G, b, lo, hi):
-        d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+        """Bounded least squares on the normal equations (bounds contain 0)."""
+        diag = np.diag(G)
+        # columns without data, or pinned at 0 by their bounds, stay 0
+        live = (diag > 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)) & (hi - lo > 0)
+        theta = np.zeros(len(b))
+        if not live.any():
+            return theta
+        G, b, lo, hi = G[np.ix_(live, live)], b[live], lo[live], hi[live]
+        d = np.sqrt(np.diag(G))
         Gs = G / np.outer(d, d) + 1e-10 * np.eye(len(d))
         bs = b / d
         try:
@@ -108,11 +120,12 @@ class Engine:
             c = cho_factor(Gs)
         free = cho_solve(c, bs) / d
         if np.all(free >= lo - 1e-12) and np.all(free <= hi + 1e-12):
-            return free
+            theta[live] = free
+            return theta
         R = np.linalg.cholesky(Gs).T
         z = np.linalg.solve(R.T, bs)
-        sol = lsq_linear(R, z, bounds=(lo * d, hi * d), method="bvls")
-        return sol.x / d
+        theta[live] = lsq_linear(R, z, bounds=(lo * d, hi * d), method="bvls").x / d
+        return theta
 
     @staticmethod
     def _rss(G, b, yy, theta):
@@ -125,7 +138,11 @@ class Engine:
         for effect, shape in zip(effects, shapes):
             f, C = effect.design(self.ctx, shape)
             fixed = fixed + f
-            for j, p in enumerate(effect.linear):
+            if effect.per_recording:  # one amplitude per recording, keyed "<key>#<recording>"
+                params = [(effect.linear[0], f"{effect.linear[0].key}#{r}") for r in range(C.shape[1])]
+            else:
+                params = [(p, p.key) for p in effect.linear]
+            for j, (p, key) in enumerate(params):
                 col = C[:, j][self.order]
                 scale = math.sqrt(float(np.mean(col**2)))
                 if scale < 1e-9:
@@ -133,9 +150,26 @@ class Engine:
                 cols.append(col / scale)
                 lo.append(p.lo * scale)
                 hi.append(p.hi * scale)
-                owner.append((effect.name, p.key, scale))
+                owner.append((effect.name, key, scale))
         C = np.column_stack(cols) if cols else np.zeros((self.n, 0))
         return fixed[self.order], C, np.array(lo), np.array(hi), owner
+
+    def _fill_unseen(self, theta, G_train, owner, k_model):
+        """A per-recording amplitude (a load-cell zero) of a recording held out entirely has no
+        training data: predict it with the mean of the other recordings' amplitudes."""
+        groups: dict[str, list[int]] = {}
+        for j, (name, key, _) in enumerate(owner):
+            if "#" in key:
+                groups.setdefault(name, []).append(j)
+        for cols in groups.values():
+            idx = [k_model + j for j in cols]
+            seen = [i for i in idx if G_train[i, i] > 0]
+            unseen = [i for i in idx if G_train[i, i] <= 0]
+            if seen and unseen:
+                mean = np.mean([theta[i] / owner[i - k_model][2] for i in seen])
+                for i in unseen:
+                    theta[i] = mean * owner[i - k_model][2]
+        return theta
 
     def fit(self, effects: list[Effect], shapes: list[dict], want_folds: bool = True):
         """Full-data fit and per-fold (train RSS, test RSS) for one set of shapes."""
@@ -152,6 +186,7 @@ class Engine:
         if want_folds and len(self.slices) > 1:
             for k in range(len(self.slices)):
                 th = self._solve(Gt - G[k], bt - b[k], lo, hi)
+                th = self._fill_unseen(th, Gt - G[k], owner, self.Jn.shape[1])
                 folds.append(
                     (self._rss(Gt - G[k], bt - b[k], yyt - yy[k], th), self._rss(G[k], b[k], yy[k], th))
                 )
@@ -161,8 +196,24 @@ class Engine:
     def baseline(self) -> Fit:
         return self.candidate([], [])
 
-    def candidate(self, effects: list[Effect], fixed_shapes: list[dict | None]) -> Fit:
-        """Fit effects; the shapes given as None are searched (grid per fold, refined on all)."""
+    def candidate(
+        self,
+        effects: list[Effect],
+        fixed_shapes: list[dict | None],
+        folds: bool = True,
+        with_model: bool = True,
+    ) -> Fit:
+        """Fit effects; the shapes given as None are searched (grid per fold, refined on all).
+        ``folds=False`` skips the held-out scoring (its RMS is then NaN); ``with_model=False``
+        keeps the model's parameters where they are (only the effects are fitted)."""
+        if not with_model:
+            saved = (self.jlo, self.jhi)
+            self.jlo = np.r_[np.zeros(len(self.jlo) - 1), self.jlo[-1:]]
+            self.jhi = np.r_[np.zeros(len(self.jhi) - 1), self.jhi[-1:]]
+            try:
+                return self.candidate(effects, fixed_shapes, folds)
+            finally:
+                self.jlo, self.jhi = saved
         free = [i for i, s in enumerate(fixed_shapes) if s is None]
         grids = []
         for i in free:
@@ -175,8 +226,8 @@ class Engine:
             shapes = list(fixed_shapes)
             for i, s in zip(free, combo):
                 shapes[i] = s
-            theta, full, folds, _ = self.fit(effects, shapes)
-            results.append((shapes, full, folds))
+            theta, full, per_fold, _ = self.fit(effects, shapes, want_folds=folds)
+            results.append((shapes, full, per_fold))
         heldout, count = self._heldout(results)
         best = min(results, key=lambda r: r[1])[0]
         best = self._refine(effects, best, free)
@@ -226,9 +277,21 @@ class Engine:
         for effect, shape in zip(effects, shapes):
             values[effect.name] = {p.key: 0.0 for p in effect.linear} | dict(shape)
             identifiable[effect.name] = list(shape)
+        per_recording: dict[tuple[str, str], dict[int, float]] = {}
         for (name, key, scale), a in zip(owner, theta[k_model:]):
+            if "#" in key:
+                base, r = key.split("#")
+                per_recording.setdefault((name, base), {})[int(r)] = float(a / scale)
+                continue
             values[name][key] = float(a / scale)
             identifiable[name].append(key)
+        counts = np.diff(np.r_[self.ctx.starts, self.n])
+        for (name, base), found in per_recording.items():
+            by = [found.get(r, 0.0) for r in range(len(counts))]
+            values[name][base] = float(np.average(by, weights=counts))
+            if len(by) > 1:
+                values[name][f"{base}_by_recording"] = by
+            identifiable[name].extend([base] * len(found))
         pred_sorted = self.ctx.base[self.order] + fixed + A @ theta
         prediction = np.empty(self.n)
         prediction[self.order] = pred_sorted
@@ -240,8 +303,11 @@ class Engine:
         )  # fmt: skip
 
 
-def pays(new: Fit, old: Fit, noise: float, n: int) -> tuple[bool, dict]:
+def pays(new: Fit, old: Fit, noise: float, n: int, second: bool = False) -> tuple[bool, dict]:
     """Whether ``new`` (one more effect) is worth its parameters over ``old``."""
+    # a further effect is judged on its own held-out gain (on real data the excess left over the
+    # noise floor is mostly model-structure error, which no effect is asked to remove)
+    min_gain, min_cut = (SECOND_GAIN, -math.inf) if second else (MIN_GAIN, MIN_EXCESS_CUT)
     d_bic = new.bic(noise, n) - old.bic(noise, n)
     before, after = old.heldout_rms, new.heldout_rms
     excess_before = max(before**2 - noise**2, 0.0)
@@ -249,7 +315,14 @@ def pays(new: Fit, old: Fit, noise: float, n: int) -> tuple[bool, dict]:
     gain = 1.0 - after / before if before > 0 else 0.0
     cut = 1.0 - excess_after / excess_before if excess_before > 0 else 0.0
     stands_out = before > MIN_EXCESS_RATIO * noise
-    ok = bool(d_bic < -MIN_DELTA_BIC and gain >= MIN_GAIN and cut >= MIN_EXCESS_CUT and stands_out)
+    # near the noise floor an effect must remove a good share of the excess; far above it (real
+    # data, where model-structure error dominates the excess) a large held-out gain suffices
+    ok = bool(
+        d_bic < -MIN_DELTA_BIC
+        and gain >= min_gain
+        and (cut >= min_cut or gain >= 2 * min_gain)
+        and stands_out
+    )
     return ok, {"delta_bic": d_bic, "heldout_gain": gain, "excess_cut": cut, "stands_out": stands_out}
 
 
@@ -271,11 +344,13 @@ def search(engine: Engine, names: tuple[str, ...], max_effects: int = 2):
     if ranked:
         ok, _ = pays(ranked[0], base, noise, n)
         if ok:
+            ranked[0].before_heldout_rms = base.heldout_rms
             kept.append(ranked[0])
     while kept and len(kept) < max_effects:
-        current = kept[-1]
-        effects = [get(name) for name in current.names]
-        shapes = [current.shapes[name] for name in current.names]
+        effects = [get(name) for name in kept[-1].names]
+        shapes = [kept[-1].shapes[name] for name in kept[-1].names]
+        # scored with its shapes fixed, as every option on top of it will be
+        current = engine.candidate(effects, shapes)
         options = []
         for name in names:
             if name in current.names:
@@ -284,9 +359,10 @@ def search(engine: Engine, names: tuple[str, ...], max_effects: int = 2):
         if not options:
             break
         best = min(options, key=lambda f: (f.heldout_rms, f.bic(noise, n)))
-        ok, info = pays(best, current, noise, n)
-        notes[" + ".join(best.names)] = info
+        ok, info = pays(best, current, noise, n, second=True)
+        notes[" + ".join(best.names)] = info | {"heldout_rms_N": best.heldout_rms}
         if not ok:
             break
+        best.before_heldout_rms = current.heldout_rms
         kept.append(best)
     return noise, base, kept, singles, notes

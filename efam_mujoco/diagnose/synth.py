@@ -249,9 +249,10 @@ def _truth_effect(effect, rng, m: Muscle, t, L, P_tr, volume, volume_rate, p_top
         delta = rng.uniform(0.004, 0.02)
         exponent = rng.uniform(0.6, 1.5)
         share_p = rng.uniform(0.02, 0.08)  # slip per full pressure swing, in strain units
-        # slip rises with strain and with pressure in the direction that makes the force lag
+        # slip rises with strain, and with pressure in the direction that makes the force lag
+        # the pressure (tension lags: higher while pressurising where pressure lowers it)
         pressure_sign = -np.sign(np.mean(3 * L * L - m.thread_length_m**2))
-        slip = (L / m.rest_length_m - 1.0) - pressure_sign * share_p * P_tr / p_top
+        slip = (L / m.rest_length_m - 1.0) + pressure_sign * share_p * P_tr / p_top
         z = _dahl(slip, delta, exponent)
         _, _, _, _, _, Ro = _eq2_parts(m, P_tr, L)
         normal = 0.2 + 0.8 * (P_tr / p_top) * (Ro / m.rest_outer_radius_m) ** 2

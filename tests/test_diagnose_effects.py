@@ -1,0 +1,195 @@
+"""Candidate effect terms: causal primitives against analytic solutions, the per-sample reference
+(what a plugin runs) against the vectorised terms, and the physics each term must have."""
+
+import math
+
+import numpy as np
+import pytest
+
+from efam_mujoco import load_muscle
+from efam_mujoco.diagnose import effects as E
+from efam_mujoco.recordings import Recording
+
+
+@pytest.fixture(scope="module")
+def fam1():
+    return load_muscle("FAM1")
+
+
+def test_lag_step_response_is_exponential():
+    # a unit step held from t = 0: y = 1 - exp(-t / tau) exactly at every sample (filterexact)
+    t = np.linspace(0.0, 2.0, 201)
+    u = np.r_[0.0, np.ones(200)]
+    y = E.lag(t, u, 0.3)
+    np.testing.assert_allclose(y[1:], 1.0 - np.exp(-t[1:] / 0.3), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("tau", [0.004, 0.3, 40.0])
+def test_lag_nonuniform_sampling_matches_the_recursion(tau):
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.005, 0.05, 3000))
+    u = np.sin(t) + rng.normal(0, 0.1, len(t))
+    starts = [0, 1200]
+    ref = np.empty_like(u)
+    for b, e in ((0, 1200), (1200, 3000)):
+        y = u[b]
+        for k in range(b, e):
+            if k > b:
+                y += (1 - math.exp(-(t[k] - t[k - 1]) / tau)) * (u[k] - y)
+            ref[k] = y
+    np.testing.assert_allclose(E.lag(t, u, tau, starts), ref, rtol=0, atol=1e-10)
+
+
+def test_play_operator_saturates_after_twice_its_width_and_holds():
+    # triangle 0 -> 1 -> 0 with width 0.1: z reaches 1 after 0.1 of travel, stays 1 while the
+    # input turns, and reaches -1 after 0.2 of travel back
+    u = np.r_[np.linspace(0, 1, 101), np.linspace(1, 0, 101)[1:]]
+    z = E.play(u, 0.1)
+    assert z[10] == pytest.approx(1.0)
+    assert np.all(z[10:101] == 1.0)
+    # sample 100 + k has travelled 0.01 k back: z = 1 - k / 10
+    assert z[110] == pytest.approx(0.0, abs=1e-9)
+    assert z[120] == pytest.approx(-1.0, abs=1e-9)
+    assert np.all(z[120:] == -1.0)
+
+
+def test_high_frequency_noise_recovers_white_noise_under_a_smooth_signal():
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 100, 20000)
+    u = 50 * np.sin(t / 7) + rng.normal(0, 0.4, len(t))
+    assert E.high_frequency_noise(u) == pytest.approx(0.4, rel=0.05)
+
+
+def test_thread_scale_one_is_eq2(fam1):
+    L = np.linspace(fam1.rest_length_m, 1.9 * fam1.rest_length_m, 50)
+    P = np.linspace(0, 517e3, 50)
+    np.testing.assert_allclose(E.tension_with_thread(fam1, P, L, 1.0), fam1.tension(P, L), rtol=1e-12)
+
+
+def test_bladder_share_plus_pressure_term_is_eq2(fam1):
+    L = np.linspace(fam1.rest_length_m, 1.9 * fam1.rest_length_m, 50)
+    P = np.linspace(0, 517e3, 50)
+    gauge = np.maximum(P - fam1.deadband_Pa, 0)
+    pressure = gauge / (4 * math.pi * fam1.turns**2) * (3 * L * L - fam1.thread_length_m**2)
+    np.testing.assert_allclose(pressure + E.bladder_tension(fam1, P, L), fam1.tension(P, L), rtol=1e-10)
+
+
+VALUES = {
+    "friction": dict(f0_N=2.0, f1_N_per_MPa=8.0, g0_N=1.0, g1_N_per_MPa=3.0, slip_strain=0.004, slip_kPa=8.0),
+    "viscoelasticity": dict(k0_N=40.0, k1_N_per_MPa=60.0, tau_s=3.0),
+    "end_effects": dict(kappa0=0.05, kappa1=0.1, P_e_kPa=80.0),
+    "braid_compliance": dict(b1_per_MPa=0.02, b2_per_MPa2=-0.01),
+    "softening": dict(a=0.1, width=0.03),
+    "drift": dict(d0_N_per_s=0.002, d1_N_per_s=-0.01, d2_N_per_s_MPa=0.01, tau_s=300.0),
+    "pressure_lag": dict(tau_s=0.2),
+    "force_offset": dict(offset_N=1.5),
+}
+
+
+def _stroke_recording(muscle, n=700):
+    """Pressure ramp at rest length, then a stroke out and back, a hold, irregular sampling."""
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.04, 0.06, n))
+    t -= t[0]
+    rest = muscle.rest_length_m
+    L = rest * (1 + 0.6 * np.clip(np.sin(np.linspace(-0.6, 2 * np.pi, n)), 0, None))
+    P = np.minimum(t / 3.0, 1.0) * 300e3 + 5e3 * np.sin(t)
+    return Recording(t, L, P, np.zeros(n))
+
+
+@pytest.mark.parametrize("name", E.EFFECT_NAMES)
+def test_per_sample_reference_equals_vectorised_term(fam1, name):
+    rec = _stroke_recording(fam1)
+    model = E.EffectModel(fam1, [(name, VALUES[name])])
+    vectorised = model.push_recording(rec)
+    stepwise = model.push_stepwise(rec.time_s, rec.length_m, rec.pressure_Pa)
+    base = fam1.push(rec.pressure_Pa, rec.length_m)
+    assert np.max(np.abs(vectorised - base)) > 1e-3  # the term does something here
+    np.testing.assert_allclose(stepwise, vectorised, rtol=1e-9, atol=1e-9)
+
+
+def _ctx(muscle, t, L, P):
+    return E.Context(t, L, P, [0], muscle)
+
+
+def test_friction_is_rate_independent_and_viscoelasticity_is_not(fam1):
+    # the same stroke at two speeds: friction gives the same force along the path, a Maxwell
+    # branch more force at the faster speed
+    rest = fam1.rest_length_m
+    path = rest * (1 + 0.5 * np.r_[np.linspace(0, 1, 400), np.linspace(1, 0, 400)])
+    P = np.full(800, 300e3)
+    slow, fast = np.linspace(0, 80, 800), np.linspace(0, 8, 800)
+    fr, ve = E.get("friction"), E.get("viscoelasticity")
+    f_slow = fr.force(_ctx(fam1, slow, path, P), VALUES["friction"])
+    f_fast = fr.force(_ctx(fam1, fast, path, P), VALUES["friction"])
+    np.testing.assert_allclose(f_slow, f_fast, atol=1e-12)
+    v_slow = ve.force(_ctx(fam1, slow, path, P), VALUES["viscoelasticity"])
+    v_fast = ve.force(_ctx(fam1, fast, path, P), VALUES["viscoelasticity"])
+    assert np.max(np.abs(v_fast)) > 3 * np.max(np.abs(v_slow))
+
+
+def test_friction_opposes_motion_and_persists_through_a_hold(fam1):
+    rest = fam1.rest_length_m
+    L = rest * (1 + 0.4 * np.r_[np.linspace(0, 1, 300), np.ones(200)])
+    t = np.linspace(0, 100, 500)
+    values = dict(VALUES["friction"], g0_N=0.0, g1_N_per_MPa=0.0)
+    f = E.get("friction").force(_ctx(fam1, t, L, np.full(500, 200e3)), values)
+    expected = -(values["f0_N"] + values["f1_N_per_MPa"] * 0.2)  # lengthening: pushes less
+    assert f[250] == pytest.approx(expected)
+    assert f[-1] == pytest.approx(expected)  # stick: no relaxation during the hold
+
+
+def test_maxwell_branch_relaxes_exponentially_during_a_hold(fam1):
+    rest = fam1.rest_length_m
+    dt = 0.01
+    t = np.arange(0, 20, dt)
+    x = np.where(t < 2.0, 0.2 * t / 2.0, 0.2)
+    ctx = _ctx(fam1, t, rest * (1 + x), np.zeros(len(t)))
+    tau = 1.5
+    f = E.get("viscoelasticity").force(ctx, dict(k0_N=100.0, k1_N_per_MPa=0.0, tau_s=tau))
+    hold = t >= 2.0
+    ratio = f[hold][200] / f[hold][0]
+    assert ratio == pytest.approx(math.exp(-(t[hold][200] - t[hold][0]) / tau), rel=1e-6)
+
+
+def test_pressure_lag_at_fixed_length_is_the_lagged_pressure_through_the_model(fam1):
+    # at constant length the gas volume is constant, so P_i is the first-order lag of P, and the
+    # force is the model's at P_i: analytic for a step (above the dead band, linear in P)
+    t = np.linspace(0, 3, 301)
+    P = np.where(t > 0.5, 300e3, 100e3)
+    L = np.full(len(t), fam1.rest_length_m)
+    f = E.get("pressure_lag").force(_ctx(fam1, t, L, P), dict(tau_s=0.25))
+    after = t > 0.5
+    # the first sample after the step has already moved by (1 - exp(-dt/tau)), dt = 0.01 s
+    P_i = 300e3 - 200e3 * np.exp(-(t[after] - t[after][0] + 0.01) / 0.25)
+    expected = fam1.push(P_i, fam1.rest_length_m) - fam1.push(300e3, fam1.rest_length_m)
+    np.testing.assert_allclose(f[after], expected, rtol=1e-9, atol=1e-9)
+
+
+def test_a_slack_tension_only_muscle_carries_no_effect_force_but_the_sensor_offset():
+    from dataclasses import replace
+
+    m = replace(load_muscle("FAM1"), tension_only=True)
+    rest = m.rest_length_m
+    t = np.linspace(0, 10, 200)
+    L = np.full(200, rest)
+    P = np.full(200, 300e3)  # an EFAM at rest length under pressure pushes: slack as tension-only
+    ctx = _ctx(m, t, L, P)
+    assert np.all(ctx.base == 0)
+    for name in E.EFFECT_NAMES:
+        f = E.get(name).force(ctx, VALUES[name])
+        if name == "force_offset":
+            assert np.all(f == 1.5)
+        else:
+            assert np.all(f == 0)
+
+
+def test_bad_effect_values_are_named():
+    with pytest.raises(ValueError, match="missing parameter 'tau_s'"):
+        E.EffectModel(load_muscle("FAM1"), [("viscoelasticity", dict(k0_N=1.0, k1_N_per_MPa=0.0))])
+    with pytest.raises(ValueError, match="'slip_strain' = 2 is outside"):
+        E.check_values("friction", dict(VALUES["friction"], slip_strain=2.0))
+    with pytest.raises(ValueError, match="unknown effect 'stiction'"):
+        E.get("stiction")
+    with pytest.raises(ValueError, match="unknown parameter 'tau'"):
+        E.check_values("pressure_lag", dict(tau_s=0.1, tau=0.2))
