@@ -32,7 +32,6 @@ The MuJoCo model (:func:`build_spec`):
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from collections.abc import Sequence
@@ -43,6 +42,7 @@ import mujoco
 import numpy as np
 
 from . import plugin
+from .files import write_json_atomic, write_text_atomic
 from .muscle import Muscle
 from .musclefile import load_muscle
 from .statics import PointMass
@@ -618,11 +618,7 @@ def write_models(directory: Path = MODELS_DIR) -> list[Path]:
     """Write models/arm_*.xml from the builder (atomically)."""
     written = []
     for name, make in MODELS.items():
-        path = Path(directory) / f"{name}.xml"
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(arm_xml(make()))
-        tmp.replace(path)
-        written.append(path)
+        written.append(write_text_atomic(Path(directory) / f"{name}.xml", arm_xml(make())))
     return written
 
 
@@ -754,9 +750,7 @@ def _run(args) -> int:
         return 0
     spec = arm_from_args(args)
     if args.xml:
-        tmp = args.xml.with_name(args.xml.name + ".tmp")
-        tmp.write_text(arm_xml(spec))
-        tmp.replace(args.xml)
+        write_text_atomic(args.xml, arm_xml(spec))
         print(f"wrote {args.xml}")
     if args.pressures_kPa:
         count = sum(len(s.muscles) for s in spec.sections)
@@ -773,9 +767,7 @@ def _run(args) -> int:
         if not result["settled"]:
             print("warning: the arm had not come to rest after 15 s of simulated time", file=sys.stderr)
         if args.json:
-            tmp = args.json.with_name(args.json.name + ".tmp")
-            tmp.write_text(json.dumps(result, indent=1) + "\n")
-            tmp.replace(args.json)
+            write_json_atomic(args.json, result)
     if not (args.xml or args.pressures_kPa):
         print("nothing to do: pass --xml FILE, --pressures-kPa ..., or --write-models", file=sys.stderr)
         return 2

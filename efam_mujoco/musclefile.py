@@ -24,6 +24,7 @@ import json
 from importlib import resources
 from pathlib import Path
 
+from .files import write_json_atomic
 from .muscle import DEFAULT_LOCK_STIFFNESS, Geometry, Muscle, MuscleError
 from .stress import StressLaw, StressLawError
 from .units import UnitError, read_quantity
@@ -174,8 +175,4 @@ def muscle_document(muscle: Muscle, laws: dict[str, StressLaw] | None = None, **
 
 def save_muscle(path: str | Path, muscle: Muscle, laws: dict[str, StressLaw] | None = None, **extra) -> Path:
     """Write a muscle file atomically (a failed write never leaves a half file)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(muscle_document(muscle, laws, **extra), indent=1) + "\n")
-    tmp.replace(path)
-    return path
+    return write_json_atomic(path, muscle_document(muscle, laws, **extra))

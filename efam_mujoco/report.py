@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import rig
+from .files import write_json_atomic
 from .muscle import Muscle
 from .musclefile import load_muscle
 from .stress import LAW_NAMES
@@ -143,7 +143,7 @@ def run_muscle(args) -> int:
     rows = compare(muscle, _pressures(args))
     print(format_report(muscle, rows))
     if args.json:
-        _write_json(Path(args.json), report_dict(muscle, rows))
+        write_json_atomic(Path(args.json), report_dict(muscle, rows))
     return 0
 
 
@@ -153,16 +153,9 @@ def run_demo(args) -> int:
     print(format_report(muscle, rows))
     out = Path(args.out)
     figure = force_stroke_figure(muscle, out / f"force_stroke_{muscle.name.lower() or 'muscle'}.png")
-    _write_json(out / "demo.json", report_dict(muscle, rows))
+    write_json_atomic(out / "demo.json", report_dict(muscle, rows))
     print(f"\nfigure: {figure}\ntable:  {out / 'demo.json'}")
     return 0
-
-
-def _write_json(path: Path, doc: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    tmp.replace(path)
 
 
 def register_cli(sub) -> None:
