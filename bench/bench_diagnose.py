@@ -37,6 +37,9 @@ from efam_mujoco.diagnose.synth import TRUTH_EFFECTS, synthesize  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "diagnose.json"
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+#: Example recordings drawn for the documentation (seed outside the benchmark's range).
+EXAMPLES = (("friction", 31), ("viscoelasticity", 32), ("softening", 35))
 SPEED_GOAL_S = 30.0
 LABELS = ("none",) + EFFECT_NAMES
 
@@ -184,6 +187,45 @@ def print_summary(s: dict) -> None:
     )
 
 
+def write_figures(summary: dict) -> list[Path]:
+    """The confusion matrix, and residual maps and overlays of a few example diagnoses."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from efam_mujoco.diagnose.report import figures
+
+    FIGURES.mkdir(parents=True, exist_ok=True)
+    rows = list(summary["confusion"])
+    matrix = np.array([[summary["confusion"][t][p] for p in LABELS] for t in rows], dtype=float)
+    fractions = matrix / np.maximum(matrix.sum(axis=1, keepdims=True), 1)
+    fig, ax = plt.subplots(figsize=(9, 7))
+    ax.imshow(fractions, cmap="Blues", vmin=0, vmax=1)
+    for i in range(len(rows)):
+        for j in range(len(LABELS)):
+            if matrix[i, j]:
+                ax.text(j, i, int(matrix[i, j]), ha="center", va="center",
+                        color="white" if fractions[i, j] > 0.5 else "black")  # fmt: skip
+    ax.set_xticks(range(len(LABELS)), LABELS, rotation=45, ha="right")
+    ax.set_yticks(range(len(rows)), rows)
+    ax.set(xlabel="named by the diagnosis (top-1)", ylabel="concealed truth",
+           title=f"blind benchmark: top-1 {summary['top1_accuracy']:.0%}, "
+           f"false alarms {summary['false_alarm_rate']:.0%} ({summary['cases']} recordings)")  # fmt: skip
+    fig.tight_layout()
+    path = FIGURES / "diagnose_confusion.png"
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+    paths = [path]
+    for effect, seed in EXAMPLES:
+        recording, truth = synthesize(seed, effect)
+        d = diagnose([recording], load_muscle(truth.base_name))
+        paths += figures(d, FIGURES, prefix=f"diagnose_synthetic_{effect}")
+    return paths
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--per-effect", type=int, default=12, help="recordings per concealed effect (8 effects)")
@@ -191,7 +233,12 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=20000, help="first seed (the library was tuned on others)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (each pinned to one core)")
     ap.add_argument("--out", default=str(RESULTS))
+    ap.add_argument("--figures-only", action="store_true", help="redraw the figures from --out and stop")
     args = ap.parse_args(argv)
+    if args.figures_only:
+        for path in write_figures(json.loads(Path(args.out).read_text())["summary"]):
+            print(f"figure: {path}")
+        return 0
     cases = plan(args.per_effect, args.clean, args.seed)
     start = time.perf_counter()
     rows = []
@@ -231,6 +278,9 @@ def main(argv=None) -> int:
     tmp.write_text(json.dumps(out, indent=1) + "\n")
     os.replace(tmp, path)
     print(f"\nwrote {path} ({out['wall_s']:.0f} s)")
+    if path == RESULTS:
+        for fig in write_figures(summary):
+            print(f"figure: {fig}")
     return 0
 
 

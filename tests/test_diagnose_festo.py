@@ -1,0 +1,31 @@
+"""``diagnose`` on real Festo DMSP recordings (skips when /work/shared is absent)."""
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path("/work/shared/data/real/festo_dmsp")
+
+pytestmark = pytest.mark.skipif(not (DATA / "recordings.json").exists(), reason="real Festo data absent")
+
+
+def test_festo_hysteresis_is_found_and_held_out_error_falls():
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import festo_diagnose as fd
+    finally:
+        sys.path.pop(0)
+    meta = json.loads((DATA / "recordings.json").read_text())
+    key = "dmsp10_cut20cm"
+    row = fd.run_group(key, fd.groups(meta)[key], meta, make_figures=False)
+    named = [e["name"] for e in row["effects"]]
+    # a direction-dependent term (pressurising vs venting) is among the named effects
+    assert set(named) & set(fd.HYSTERESIS_EFFECTS)
+    # the load cell's zero, left in the data on purpose, is found, per file
+    assert "force_offset" in named
+    assert row["heldout_rms_after_N"] < 0.7 * row["heldout_rms_before_N"]
+    for e in row["effects"]:
+        assert e["heldout_rms_after_N"] < e["heldout_rms_before_N"]
