@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import write_text_atomic
 from . import Diagnosis, diagnose
 from .effects import get
 
@@ -74,11 +75,7 @@ def plugin_config(d: Diagnosis) -> dict[str, str]:
 
 
 def write_json(path, d: Diagnosis) -> Path:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(d.to_json(), indent=1, default=float) + "\n")
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(path, json.dumps(d.to_json(), indent=1, default=float) + "\n")
 
 
 # ------------------------------------------------------------------------------- figures
@@ -270,8 +267,7 @@ def run(args) -> int:
     if args.report:
         directory = Path(args.report)
         directory.mkdir(parents=True, exist_ok=True)
-        (directory / "report.txt.tmp").write_text(report)
-        os.replace(directory / "report.txt.tmp", directory / "report.txt")
+        write_text_atomic(directory / "report.txt", report)
         for path in figures(d, directory):
             print(f"figure: {path}")
     return 0
