@@ -28,8 +28,10 @@ the largest force), the rest kept (an active set iterated to a fixed point), and
 error uses the clipped model.
 
 ``objective="eq14"`` (default when the data are isobaric strokes) then minimises the paper's
-Eq. 14 error itself, with Nelder-Mead over all coefficients started from the least-squares
-optimum -- the paper's criterion with a start no hand-picked guess can beat.
+Eq. 14 error itself, by the same variable projection: Eq. 14 is a weighted L1 norm, so for given
+non-linear coefficients a linear programme gives the exact optimum of the linear ones
+(``_eq14_search``). For a tension-only muscle (max(F, 0) is not linear) Nelder-Mead over all
+coefficients, started from the best of the least-squares optimum and a grid, is used instead.
 """
 
 from __future__ import annotations
@@ -653,7 +655,7 @@ def fit_law(
     ``muscle`` gives the geometry (rest length and diameter, braid angle, bladder volume), the
     dead band (the start, or the value kept when ``fit_deadband`` is False) and ``tension_only``;
     its stress law is ignored. ``objective``: ``"lsq"`` (least squares in N over all samples) or
-    ``"eq14"`` (then the paper's Eq. 14 error, polished from the least-squares optimum); default
+    ``"eq14"`` (the paper's Eq. 14 error, searched as described in the module docstring); default
     ``"eq14"`` for isobaric strokes and ``"lsq"`` otherwise. ``muscle_for(recording)`` gives a
     recording its own muscle (e.g. the same tube cut to another length); the returned fit's
     ``muscle`` is ``muscle`` with the fitted law and dead band.
