@@ -41,6 +41,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -245,6 +246,22 @@ def drop_report(recording: Recording, limit: int = 5) -> str:
     )
     more = f"; and {len(dropped) - limit} more" if len(dropped) > limit else ""
     return f"{recording.meta.get('source', 'recording')}: dropped {len(dropped)} bad row(s): {shown}{more}"
+
+
+def read_recordings(
+    paths, *, rest_length_m: float | None = None, on_bad_rows: str = "error", warn=None
+) -> list[Recording]:
+    """Read several CSV files (see :func:`read_csv`); with ``on_bad_rows="drop"`` each file's
+    dropped rows are told to ``warn`` (a callable taking one line; default: standard error)."""
+    warn = warn or (lambda line: print(line, file=sys.stderr))
+    recordings = []
+    for path in paths:
+        recording = read_csv(path, rest_length_m=rest_length_m, on_bad_rows=on_bad_rows)
+        note = drop_report(recording)
+        if note:
+            warn(note)
+        recordings.append(recording)
+    return recordings
 
 
 def write_csv(path: str | os.PathLike, recording: Recording, *, pressure_unit: str = "kPa") -> Path:

@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-import json
-import os
-import sys
-from pathlib import Path
-
+from ..files import write_json_atomic
 from ..musclefile import muscle_from_document, read_document
-from ..recordings import drop_report, read_csv
+from ..recordings import read_recordings
 from ..stress import LAW_NAMES
 from . import report
 from .baseline import paper_baseline
@@ -71,13 +67,7 @@ def run(args) -> int:
         from dataclasses import replace
 
         muscle = replace(muscle, tension_only=True)
-    recordings = []
-    for path in args.files:
-        recording = read_csv(path, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
-        note = drop_report(recording)
-        if note:
-            print(f"efam calibrate: {note}", file=sys.stderr)
-        recordings.append(recording)
+    recordings = read_recordings(args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
     laws = LAW_NAMES if args.stress == "all" else (args.stress,)
     cal = calibrate(
         recordings, muscle, laws, estimate_theta=not args.keep_theta, fit_deadband=args.fit_deadband,
@@ -95,16 +85,9 @@ def run(args) -> int:
     if args.out:
         print(f"\nwrote muscle file {cal.save_muscle(args.out)}")
     if args.json:
-        _write_json(args.json, cal.to_json())
+        write_json_atomic(args.json, cal.to_json())
         print(f"wrote {args.json}")
     if args.figures:
         for path in report.write_figures(cal, args.figures):
             print(f"wrote {path}")
     return 0
-
-
-def _write_json(path, data) -> None:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, path)

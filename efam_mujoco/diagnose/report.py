@@ -247,18 +247,12 @@ def run(args) -> int:
     from dataclasses import replace
 
     from ..musclefile import load_muscle
-    from ..recordings import drop_report, read_csv
+    from ..recordings import read_recordings
 
     muscle = load_muscle(args.muscle)
     if args.tension_only:
         muscle = replace(muscle, tension_only=True)
-    recordings = []
-    for f in args.files:
-        rec = read_csv(f, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
-        note = drop_report(rec)
-        if note:
-            print(note)
-        recordings.append(rec)
+    recordings = read_recordings(args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
     d = diagnose(recordings, muscle)
     report = text(d)
     print(report, end="")
