@@ -18,7 +18,7 @@ The MuJoCo model (:func:`build_spec`):
   disk spacing would be undetermined). The disks discretise the arc that the muscle tendons
   follow: the tendon chords are shorter than the arc by sin(t/2)/(t/2) at a bend t per link.
 * muscles: a spatial tendon ``s{j}m{i}`` through a site on every disk of its section (its
-  length is the path length), driven by one ``efam.muscle`` plugin actuator (ctrl = gauge
+  length is the path length), driven by an ``efam.muscle`` plugin actuator (ctrl = gauge
   pressure in Pa; with ``pressure_tau_s`` > 0 a first-order pressure lag, ``dyntype=
   filterexact``, and the plugin uses the filtered pressure, the actuator's activation).
 * masses from the muscles' parts (paper Table 1, see :func:`muscle_part_masses`): end fittings
@@ -514,9 +514,22 @@ def _add_muscles(spec, j, section, disks, arm, affine=False):
         if affine:
             _make_affine(actuator, muscle, arm.max_pressure_Pa / 2)
         else:
-            instance = spec.add_plugin(name=f"{name}_muscle", plugin_name=plugin.PLUGIN_NAME, active=True)
-            instance.config = plugin.plugin_config(muscle)
-            actuator.plugin = instance
+            actuator.plugin = _shared_instance(spec, muscle)
+
+
+def _shared_instance(spec: mujoco.MjSpec, muscle: Muscle):
+    """The plugin instance for ``muscle``'s constants, made once per distinct muscle: an instance
+    evaluates all its actuators as one vectorised batch, and MuJoCo visits every instance each
+    step whatever it computes (bench/bench_plugin.py: shared 0.99x affine, one each 0.90x)."""
+    config = plugin.plugin_config(muscle)
+    for existing in spec.plugins:
+        if existing.plugin_name == plugin.PLUGIN_NAME and dict(existing.config) == config:
+            return existing
+    instance = spec.add_plugin(
+        name=f"muscle{len(spec.plugins) + 1}", plugin_name=plugin.PLUGIN_NAME, active=True
+    )
+    instance.config = config
+    return instance
 
 
 def _make_affine(actuator, muscle: Muscle, pressure_Pa: float):
