@@ -85,6 +85,9 @@ static const char* const kAttributes[] = {
 #define NATTRIBUTE ((int)(sizeof(kAttributes) / sizeof(kAttributes[0])))
 #define FIRST_COEF_ATTRIBUTE 8
 
+// effect terms (config key `effects`): their own file; hooks below are marked efam_effects.h
+#include "efam_effects.h"
+
 // ------------------------------------------------------------------------------ the muscle
 
 typedef struct {
@@ -104,6 +107,8 @@ typedef struct {
   double pressure_denom;  // 4 * pi * N * N
   double rest_mid_radius; // rest_outer_radius - rest_wall / 2
   double arccot_scale;    // E3 * (2 / pi)
+
+  EffectsConfig effects;  // efam_effects.h: the effect terms switched on (count 0: none)
 
   // the actuators this instance drives
   int nactuator;
@@ -713,6 +718,7 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
   read_coefficients(m, instance, &mu);
   derive(m, instance, &mu);
   check_stable(m, instance, &mu);
+  effects_configure(m, instance, &mu.effects, EFFECTS_MUSCLE_OF(mu));  // efam_effects.h
 
   Muscle* out = (Muscle*)malloc(sizeof(Muscle) + sizeof(int) * (size_t)nact);
   if (!out) {
@@ -775,6 +781,9 @@ static void muscle_compute(const mjModel* m, mjData* d, int instance, int capabi
       int out = m->actuator_outadr[i];
       d->actuator_force[out] = -muscle_tension(mu, actuator_pressure(m, d, i), d->actuator_length[out]);
     }
+    if (mu->effects.count) {  // efam_effects.h: the effect terms (as after the batched path below)
+      effects_add_forces(m, d, instance, &mu->effects, mu->actuator, mu->nactuator);
+    }
     return;
   }
   double pressure[BATCH], length[BATCH], tension[BATCH];
@@ -789,6 +798,9 @@ static void muscle_compute(const mjModel* m, mjData* d, int instance, int capabi
     for (int k = 0; k < n; k++) {
       d->actuator_force[m->actuator_outadr[mu->actuator[first + k]]] = -tension[k];
     }
+  }
+  if (mu->effects.count) {  // efam_effects.h: the effect terms, on top of the forces just written
+    effects_add_forces(m, d, instance, &mu->effects, mu->actuator, mu->nactuator);
   }
 }
 
@@ -827,9 +839,12 @@ static void muscle_copy(mjData* dest, const mjModel* m, const mjData* src, int i
   memcpy(to, from, sizeof(Muscle) + sizeof(int) * (size_t)from->nactuator);
 }
 
-static int muscle_nstate(const mjModel* m, int instance) { return 0; }
+// efam_effects.h: the effect terms' state (none when no effect is switched on)
+static int muscle_nstate(const mjModel* m, int instance) { return effects_nstate(m, instance); }
 
-static void muscle_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int instance) {}
+static void muscle_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int instance) {
+  effects_reset(m, plugin_state, instance);  // efam_effects.h
+}
 
 // ---------------------------------------------------------------------------- registration
 
@@ -849,13 +864,14 @@ EFAM_EXPORT int efam_muscle_register(void) {
   mjp_defaultPlugin(&plugin);
   plugin.name = PLUGIN_NAME;
   plugin.capabilityflags |= mjPLUGIN_ACTUATOR;
-  plugin.nattribute = NATTRIBUTE;
-  plugin.attributes = kAttributes;
+  // efam_effects.h: the muscle's keys, then `effects` and the effect parameter keys
+  plugin.attributes = effects_all_attributes(kAttributes, NATTRIBUTE, &plugin.nattribute);
   plugin.nstate = muscle_nstate;
   plugin.init = muscle_init;
   plugin.destroy = muscle_destroy;
   plugin.copy = muscle_copy;
   plugin.reset = muscle_reset;
+  plugin.advance = effects_advance;  // efam_effects.h: commits the effects' state once per step
   plugin.compute = muscle_compute;
   return mjp_registerPlugin(&plugin);
 }

@@ -1,0 +1,663 @@
+// efam_effects.h: the diagnosis's effect terms (efam_mujoco/diagnose/effects.py) switched on
+// inside the efam.muscle plugin. Included once by efam_muscle.c, after its stress-law table and
+// before its Muscle struct, which holds an EffectsConfig.
+//
+// The reference is EffectModel.push_stepwise / Effect.step: every term below is evaluated from
+// the same inputs, in the same order, with the same constants, so a MuJoCo replay of a recording
+// equals push_stepwise to about 1e-12 relative (tests/test_plugin_effects.py holds it to 1e-9).
+// The terms need Eq. 2 in forms the muscle's batched hot path does not compute (at a stretched
+// thread, the bladder share alone, at other pressures and lengths), so this file keeps its own
+// scalar Eq. 2, evaluated as muscle.py and effects.py do, from a copy of the muscle's constants.
+// Nothing here runs unless config key `effects` names at least one term.
+//
+// Config keys: `effects` = comma-separated names (friction, viscoelasticity, end_effects,
+// braid_compliance, softening, drift, pressure_lag); each parameter is `<effect>.<key>` with the
+// key (unit in it) and bounds of effects.py, e.g. `friction.f0_N`, `viscoelasticity.tau_s`.
+// force_offset is a load-cell zero error, not an actuator force: the rig adds it to its reading.
+// pressure_lag's first-order lag is MuJoCo's own: the actuator must have dyntype="filterexact"
+// dynprm="<tau_s>" actdim="1" (actearly="true" to match push_stepwise sample for sample); the
+// plugin adds the gas-volume term on top of it.
+//
+// State, in MuJoCo's plugin state (mjData.plugin_state: one per mjData, copied by mj_copyData,
+// zeroed by mj_resetData, so thread-safe with no locks): per actuator one block of doubles,
+// [started, t_first, t_prev, L_prev, P_prev, the effects' own states in config order]. The
+// instance holds the committed blocks, then the pending blocks, then [pending_valid,
+// pending_time]. compute evaluates the terms from the committed state and writes what the state
+// becomes into the pending blocks; advance (once per mj_step, after integration) commits them.
+// Extra mj_forward calls (sensors, viewers, a changed control before the step) only rewrite the
+// pending blocks, so the state advances exactly once per mj_step. With the RK4 integrator the
+// pending state of the step's first evaluation (the earliest time) is kept, not that of the
+// intermediate stages.
+//
+// Inputs the terms see, per actuator: L = actuator_length, P = the pressure the muscle sees
+// (ctrl, or the filtered pressure in the activation) -- with pressure_lag switched on, P is the
+// measured pressure (the clamped ctrl) and the activation is the lagged one, as in effects.py --
+// t = d->time - t_first, dt = d->time - t_prev (a clock that goes back counts as no time).
+// A non-finite input, force or state adds nothing and leaves the state where it was.
+
+#define NEFFECT_PARAM_MAX 6
+#define EFFECT_HEADER_STATE 5  // started, t_first, t_prev, L_prev, P_prev
+#define EFFECT_P_ATM 101325.0  // effects.P_ATM
+
+typedef enum {
+  FX_FRICTION,
+  FX_VISCOELASTICITY,
+  FX_END_EFFECTS,
+  FX_BRAID_COMPLIANCE,
+  FX_SOFTENING,
+  FX_DRIFT,
+  FX_PRESSURE_LAG,
+  NEFFECT
+} EffectKind;
+
+typedef struct {
+  const char* key;
+  double lo, hi;  // inclusive, as effects.Param / check_values
+} EffectParam;
+
+typedef struct {
+  const char* name;
+  int nparam;
+  EffectParam params[NEFFECT_PARAM_MAX];
+  int nstate;  // doubles of its own per actuator
+} EffectSpec;
+
+// effects.LIBRARY without force_offset, parameters in its order (the step functions index them).
+static const EffectSpec kEffects[NEFFECT] = {
+    {"friction",
+     6,
+     {{"f0_N", 0.0, 100.0},
+      {"f1_N_per_MPa", 0.0, 300.0},
+      {"g0_N", 0.0, 100.0},
+      {"g1_N_per_MPa", 0.0, 300.0},
+      {"slip_strain", 5e-4, 0.05},
+      {"slip_kPa", 0.5, 100.0}},
+     2},
+    {"viscoelasticity", 3, {{"k0_N", 0.0, 5000.0}, {"k1_N_per_MPa", 0.0, 10000.0}, {"tau_s", 0.1, 500.0}}, 1},
+    {"end_effects", 3, {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}}, 0},
+    {"braid_compliance", 2, {{"b1_per_MPa", 0.0, 0.2}, {"b2_per_MPa2", -0.2, 0.2}}, 0},
+    {"softening", 2, {{"a", 0.0, 1.0}, {"width", 1e-3, 0.5}}, 1},
+    {"drift",
+     4,
+     {{"d0_N_per_s", -1.0, 1.0}, {"d1_N_per_s", -10.0, 10.0}, {"d2_N_per_s_MPa", -10.0, 10.0}, {"tau_s", 30.0, 1e6}},
+     0},
+    {"pressure_lag", 1, {{"tau_s", 0.002, 3.0}}, 2},
+};
+#define EFFECT_KNOWN "friction, viscoelasticity, end_effects, braid_compliance, softening, drift, pressure_lag"
+
+// The muscle's constants the terms need (a copy: see the top of the file).
+typedef struct {
+  double rest_length, bladder_volume, deadband, lock_stiffness;
+  int tension_only;
+  Law law;
+  double coef[4], arccot_scale;
+  double turns, thread, thread_sq_pow, min_length, max_length, rest_outer_radius, rest_wall, rest_mid_radius;
+} EffectsMuscle;
+
+// The constants of a Muscle `mu` (expanded where the Muscle struct is complete).
+#define EFFECTS_MUSCLE_OF(mu)                                                                        \
+  ((EffectsMuscle){.rest_length = (mu).rest_length, .bladder_volume = (mu).bladder_volume,           \
+                   .deadband = (mu).deadband, .lock_stiffness = (mu).lock_stiffness,                 \
+                   .tension_only = (mu).tension_only, .law = (mu).law,                               \
+                   .coef = {(mu).coef[0], (mu).coef[1], (mu).coef[2], (mu).coef[3]},                 \
+                   .arccot_scale = (mu).arccot_scale, .turns = (mu).turns, .thread = (mu).thread,    \
+                   .thread_sq_pow = (mu).thread_sq_pow, .min_length = (mu).min_length,               \
+                   .max_length = (mu).max_length, .rest_outer_radius = (mu).rest_outer_radius,       \
+                   .rest_wall = (mu).rest_wall, .rest_mid_radius = (mu).rest_mid_radius})
+
+typedef struct {
+  int count;                                   // effects switched on; 0: the plugin as without them
+  EffectKind kind[NEFFECT];                    // in the order of config key `effects`
+  double value[NEFFECT][NEFFECT_PARAM_MAX];    // their parameters, in kEffects order
+  int state_offset[NEFFECT];                   // of each one's own state inside an actuator block
+  int block;                                   // doubles per actuator
+  int pressure_lag;                            // switched on: the effects see the measured pressure
+  EffectsMuscle muscle;
+} EffectsConfig;
+
+// Defined in efam_muscle.c (after the Muscle struct, which needs this file first).
+static double actuator_pressure(const mjModel* m, const mjData* d, int i);
+static const char* instance_label(const mjModel* m, int instance, char* buf, size_t size);
+static const char* config_value(const mjModel* m, int instance, const char* key);
+static double read_number(const mjModel* m, int instance, const char* key, int required, double fallback);
+
+#define EFFECT_ERROR(m, instance, fmt, ...)                                                    \
+  do {                                                                                         \
+    char label_[160];                                                                          \
+    mju_error("efam.muscle (%s): " fmt, instance_label(m, instance, label_, sizeof(label_)), \
+              __VA_ARGS__);                                                                    \
+  } while (0)
+
+// ------------------------------------------------------------------------------ config keys
+
+#define NEFFECT_ATTRIBUTE_MAX (1 + NEFFECT * NEFFECT_PARAM_MAX)
+#define EFFECT_KEY_SIZE 48
+
+// "<effect>.<key>" of parameter j of effect e.
+static void effect_key(EffectKind e, int j, char* out) {
+  snprintf(out, EFFECT_KEY_SIZE, "%s.%s", kEffects[e].name, kEffects[e].params[j].key);
+}
+
+// The muscle's own config keys followed by `effects` and every effect parameter key, for
+// mjpPlugin.attributes (built once, at registration; MuJoCo copies the names).
+static const char* const* effects_all_attributes(const char* const* muscle_keys, int nmuscle, int* total) {
+  static char keys[NEFFECT_ATTRIBUTE_MAX][EFFECT_KEY_SIZE];
+  static const char* all[64 + NEFFECT_ATTRIBUTE_MAX];
+  int n = 0;
+  for (int a = 0; a < nmuscle && a < 64; a++) {
+    all[n++] = muscle_keys[a];
+  }
+  all[n++] = "effects";
+  int k = 0;
+  for (int e = 0; e < NEFFECT; e++) {
+    for (int j = 0; j < kEffects[e].nparam; j++, k++) {
+      effect_key((EffectKind)e, j, keys[k]);
+      all[n++] = keys[k];
+    }
+  }
+  *total = n;
+  return all;
+}
+
+// Calls visit(kind, context) for each name in config key `effects`; a name that is not an
+// actuator-force effect gives kind = NEFFECT. Returns -1 for an empty name, else 0.
+static int effects_each_name(const char* list, void (*visit)(EffectKind, const char*, int, void*), void* context) {
+  const char* p = list;
+  while (p && *p) {
+    while (*p == ' ' || *p == '\t') {
+      p++;
+    }
+    const char* end = p;
+    while (*end && *end != ',') {
+      end++;
+    }
+    int len = (int)(end - p);
+    while (len > 0 && (p[len - 1] == ' ' || p[len - 1] == '\t')) {
+      len--;
+    }
+    if (len == 0) {
+      return -1;
+    }
+    EffectKind kind = NEFFECT;
+    for (int e = 0; e < NEFFECT; e++) {
+      if ((int)strlen(kEffects[e].name) == len && strncmp(kEffects[e].name, p, (size_t)len) == 0) {
+        kind = (EffectKind)e;
+      }
+    }
+    visit(kind, p, len, context);
+    p = *end ? end + 1 : end;
+  }
+  return 0;
+}
+
+static void count_state(EffectKind kind, const char* name, int len, void* context) {
+  if (kind != NEFFECT) {
+    *(int*)context += kEffects[kind].nstate;
+  }
+}
+
+// Doubles per actuator for config key `effects` (0 when none is named). Lenient: init rejects
+// what is wrong, with a message.
+static int effects_block(const mjModel* m, int instance) {
+  const char* list = config_value(m, instance, "effects");
+  int block = 0, named = 0;
+  if (!list) {
+    return 0;
+  }
+  for (const char* p = list; *p; p++) {
+    named |= *p != ' ' && *p != '\t';  // "," is named (and rejected): an empty name
+  }
+  if (!named) {
+    return 0;
+  }
+  effects_each_name(list, count_state, &block);
+  return EFFECT_HEADER_STATE + block;
+}
+
+// mjpPlugin.nstate: committed and pending blocks for every actuator of the instance, and the
+// pending flag and time. Called by the compiler once actuator_plugin and the config are set.
+static int effects_nstate(const mjModel* m, int instance) {
+  int block = effects_block(m, instance);
+  int nact = 0;
+  for (int i = 0; i < m->nactuator; i++) {
+    nact += m->actuator_plugin[i] == instance;
+  }
+  return block && nact ? 2 * nact * block + 2 : 0;
+}
+
+typedef struct {
+  const mjModel* m;
+  int instance;
+  EffectsConfig* fx;
+} ParseContext;
+
+static void add_effect(EffectKind kind, const char* name, int len, void* context) {
+  ParseContext* c = (ParseContext*)context;
+  if (kind == NEFFECT) {
+    if (len == 12 && strncmp(name, "force_offset", 12) == 0) {
+      EFFECT_ERROR(c->m, c->instance,
+                   "config key 'effects': 'force_offset' is a load-cell zero error, not an actuator "
+                   "force; add it to the load-cell reading (efam_mujoco.rig does)%s",
+                   "");
+    }
+    EFFECT_ERROR(c->m, c->instance, "config key 'effects': unknown effect '%.*s' (known: %s)", len, name,
+                 EFFECT_KNOWN);
+  }
+  for (int k = 0; k < c->fx->count; k++) {
+    if (c->fx->kind[k] == kind) {
+      EFFECT_ERROR(c->m, c->instance, "config key 'effects': effect '%s' is named twice", kEffects[kind].name);
+    }
+  }
+  c->fx->kind[c->fx->count++] = kind;
+}
+
+static int effect_on(const EffectsConfig* fx, EffectKind kind) {
+  for (int k = 0; k < fx->count; k++) {
+    if (fx->kind[k] == kind) {
+      return 1;
+    }
+  }
+  return 0;
+}
+
+// pressure_lag rides on the actuator's own first-order lag: filterexact with the same tau.
+static void check_pressure_lag(const mjModel* m, int instance, double tau) {
+  for (int i = 0; i < m->nactuator; i++) {
+    if (m->actuator_plugin[i] != instance) {
+      continue;
+    }
+    double dynprm = m->actuator_dynprm[i * mjNDYN];
+    if (m->actuator_dyntype[i] != mjDYN_FILTEREXACT || !(fabs(dynprm - tau) <= 1e-12 * tau)) {
+      EFFECT_ERROR(m, instance,
+                   "config key 'pressure_lag.tau_s' = %.10g needs the actuator's own lag with the same "
+                   "time constant: dyntype=\"filterexact\" dynprm=\"%.17g\" actdim=\"1\" (actearly=\"true\" "
+                   "to match push_stepwise); the actuator has dyntype %d, dynprm %.10g",
+                   tau, tau, m->actuator_dyntype[i], dynprm);
+    }
+  }
+}
+
+// Read and validate the effect keys (an error names the key); the muscle's constants are copied.
+static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx, EffectsMuscle muscle) {
+  memset(fx, 0, sizeof(*fx));
+  fx->muscle = muscle;
+  const char* list = config_value(m, instance, "effects");
+  if (list && effects_block(m, instance)) {
+    ParseContext context = {m, instance, fx};
+    if (effects_each_name(list, add_effect, &context) < 0) {
+      EFFECT_ERROR(m, instance, "config key 'effects' = '%s' has an empty name (comma-separated names: %s)",
+                   list, EFFECT_KNOWN);
+    }
+  }
+  char key[EFFECT_KEY_SIZE];
+  for (int e = 0; e < NEFFECT; e++) {
+    int on = effect_on(fx, (EffectKind)e);
+    for (int j = 0; j < kEffects[e].nparam; j++) {
+      effect_key((EffectKind)e, j, key);
+      if (!on) {
+        if (config_value(m, instance, key)) {
+          EFFECT_ERROR(m, instance, "config key '%s' is given but effect '%s' is not in config key 'effects'",
+                       key, kEffects[e].name);
+        }
+        continue;
+      }
+      const EffectParam* p = &kEffects[e].params[j];
+      double value = read_number(m, instance, key, 1, 0.0);
+      if (!(p->lo <= value && value <= p->hi)) {
+        EFFECT_ERROR(m, instance, "config key '%s' = %.10g is outside [%g, %g]", key, value, p->lo, p->hi);
+      }
+      fx->value[e][j] = value;
+    }
+  }
+  fx->block = fx->count ? EFFECT_HEADER_STATE : 0;
+  for (int k = 0; k < fx->count; k++) {
+    fx->state_offset[fx->kind[k]] = fx->block;
+    fx->block += kEffects[fx->kind[k]].nstate;
+  }
+  fx->pressure_lag = effect_on(fx, FX_PRESSURE_LAG);
+  if (fx->pressure_lag) {
+    check_pressure_lag(m, instance, fx->value[FX_PRESSURE_LAG][0]);
+  }
+  int expected = effects_nstate(m, instance);
+  if (m->plugin_statenum[instance] != expected) {  // nstate and init read the same keys: cannot happen
+    EFFECT_ERROR(m, instance, "plugin state has %d doubles, the effects need %d", m->plugin_statenum[instance],
+                 expected);
+  }
+}
+
+// ------------------------------------------------------------------ Eq. 2, as effects.py uses it
+
+static double effects_pow(double x, double y) {  // libm pow, as Python's float ** (see libm_pow)
+  double (*volatile fn)(double, double) = pow;
+  return fn(x, y);
+}
+
+static double fx_max0(double x) { return x > 0.0 ? x : 0.0; }
+
+static double fx_clip(double x, double lo, double hi) {
+  double y = x > lo ? x : lo;
+  return y < hi ? y : hi;
+}
+
+static double fx_signed_power(double e, double p) { return ((e > 0.0) - (e < 0.0)) * pow(fabs(e), p); }
+
+// StressLaw.__call__
+static double fx_stress(const EffectsMuscle* k, double e, double P) {
+  const double* c = k->coef;
+  double linear = (c[0] + c[1] * P) * e;
+  switch (k->law) {
+    case LAW_POLYNOMIAL:
+      return linear + (c[2] * (e * e) + c[3] * pow(e, 3.0));
+    case LAW_EXP_DECAY:
+      return linear + c[2] * (1.0 - exp(-c[3] * e));
+    case LAW_EXPONENT:
+      return linear + c[0] * (fx_signed_power(e, c[2]) + fx_signed_power(e, c[3]));
+    case LAW_SIGMOID:
+      return linear + c[2] * tanh(c[3] * e);
+    case LAW_ARCCOT:
+      return linear + k->arccot_scale * atan(c[3] * e);
+    default:
+      return linear;
+  }
+}
+
+// Muscle.outer_radius (Eq. 10) at a length as given (not clipped).
+static double fx_outer_radius(const EffectsMuscle* k, double L) {
+  return sqrt(fx_max0(k->thread_sq_pow - L * L)) / (2 * M_PI * k->turns);
+}
+
+// Eq. 11 (Muscle._wall)
+static double fx_wall(const EffectsMuscle* k, double L, double r_out) {
+  return r_out - sqrt(fx_max0(r_out * r_out - k->bladder_volume / (M_PI * L)));
+}
+
+// The bladder's two stress terms of Eq. 2 at a clipped length (effects.bladder_tension).
+static double fx_bladder_terms(const EffectsMuscle* k, double P, double L, double r_out, double t) {
+  double N = k->turns;
+  double eps_z = L / k->rest_length - 1.0;
+  double eps_c = (r_out - t / 2) / k->rest_mid_radius - 1.0;
+  return fx_stress(k, eps_z, P) * k->bladder_volume / L -
+         fx_stress(k, eps_c, P) * t * L * L / (2 * M_PI * r_out * N * N);
+}
+
+// Muscle.tension: Eq. 2 with the lock-out spring, tension-only, zero for non-finite inputs.
+static double fx_tension(const EffectsMuscle* k, double pressure, double length) {
+  if (!isfinite(pressure) || !isfinite(length)) {
+    return 0.0;
+  }
+  double P = fx_max0(pressure);
+  double L = fx_clip(length, k->min_length, k->max_length);
+  double r_out = fx_outer_radius(k, L);
+  double t = fx_wall(k, L, r_out);
+  double gauge = fx_max0(P - k->deadband);
+  double N = k->turns;
+  double force = gauge / (4 * M_PI * N * N) * (3 * L * L - k->thread * k->thread) +
+                 fx_bladder_terms(k, P, L, r_out, t);
+  force = force + k->lock_stiffness * (length - L);
+  if (k->tension_only) {
+    force = fx_max0(force);
+  }
+  return force;
+}
+
+static double fx_push(const EffectsMuscle* k, double P, double L) { return -fx_tension(k, P, L); }
+
+// effects.tension_with_thread: Eq. 2 with the thread length scaled (no lock-out, not one-sided).
+static double fx_tension_with_thread(const EffectsMuscle* k, double pressure, double length, double scale) {
+  double P = fx_max0(pressure);
+  double L = fx_clip(length, k->min_length, k->max_length);
+  double B = k->thread * scale;
+  double N = k->turns;
+  double r_out = sqrt(fx_max0(B * B - L * L)) / (2 * M_PI * N);
+  double t = fx_wall(k, L, r_out);
+  double gauge = fx_max0(P - k->deadband);
+  return gauge / (4 * M_PI * N * N) * (3 * L * L - B * B) + fx_bladder_terms(k, P, L, r_out, t);
+}
+
+// effects.bladder_tension
+static double fx_bladder_tension(const EffectsMuscle* k, double pressure, double length) {
+  double L = fx_clip(length, k->min_length, k->max_length);
+  double r_out = fx_outer_radius(k, L);
+  return fx_bladder_terms(k, fx_max0(pressure), L, r_out, fx_wall(k, L, r_out));
+}
+
+// effects.gas_volume: pi R_o(L)^2 L - V_B, at least 1e-9 m^3.
+static double fx_gas_volume(const EffectsMuscle* k, double length) {
+  double L = fx_clip(length, k->min_length, k->max_length);
+  double r_out = fx_outer_radius(k, L);
+  double V = M_PI * effects_pow(r_out, 2) * L - k->bladder_volume;
+  return V > 1e-9 ? V : 1e-9;
+}
+
+// --------------------------------------------------------------------------- the terms
+
+typedef struct {
+  double t, dt, P, L, P_prev, L_prev, x;
+  double P_seen, base;  // what the muscle's own force used, and that force (push sign)
+  int first, engaged;
+} EffectSample;
+
+static double fx_clip1(double z) { return z > 1.0 ? 1.0 : (z < -1.0 ? -1.0 : z); }
+
+// Friction.step: two play operators (strain, pressure).
+static double friction_step(const EffectsMuscle* k, const double* v, double* z, const EffectSample* s) {
+  if (s->first) {
+    z[0] = z[1] = 0.0;
+  }
+  double dx = (s->L - s->L_prev) / k->rest_length;
+  z[0] = fx_clip1(z[0] + dx / v[4]);
+  z[1] = fx_clip1(z[1] + (s->P - s->P_prev) / (v[5] * 1e3));
+  double sign_p = -copysign(1.0, 3 * effects_pow(s->L, 2) - k->thread_sq_pow);
+  double p = s->P / 1e6;
+  double force = -(v[0] + v[1] * p) * z[0];
+  force -= (v[2] + v[3] * p) * sign_p * z[1];
+  return s->engaged ? force : 0.0;
+}
+
+// Viscoelasticity.step: one Maxwell branch on the strain.
+static double viscoelasticity_step(const double* v, double* w, const EffectSample* s) {
+  if (s->first) {
+    w[0] = s->x;
+  } else {
+    w[0] += (1.0 - exp(-s->dt / v[2])) * (s->x - w[0]);
+  }
+  double force = -(v[0] + v[1] * s->P / 1e6) * (s->x - w[0]);
+  return s->engaged ? force : 0.0;
+}
+
+// EndEffects.step: Tondu's strain factor times the model's stiffness dF/dL.
+static double end_effects_step(const EffectsMuscle* k, const double* v, const EffectSample* s) {
+  double h = 1e-6 * k->rest_length;
+  double slope = (fx_push(k, s->P, s->L + h) - fx_push(k, s->P, s->L - h)) / (2 * h);
+  double kappa = v[0] + v[1] * exp(-s->P / (v[2] * 1e3));
+  double force = kappa * (s->L - k->rest_length) * slope;
+  return s->engaged ? force : 0.0;
+}
+
+// BraidCompliance.step: thread strain b1 q + b2 q^2 times d push / d ln B.
+static double braid_compliance_step(const EffectsMuscle* k, const double* v, const EffectSample* s) {
+  double load = s->P - k->deadband;
+  double q = (load > 0.0 ? load : 0.0) / 1e6 * fx_outer_radius(k, s->L) / k->rest_outer_radius;
+  double h = 1e-6;
+  double slope = -(fx_tension_with_thread(k, s->P, s->L, 1 + h) - fx_tension_with_thread(k, s->P, s->L, 1 - h)) /
+                 (2 * h);
+  double force = (v[0] * q + v[1] * q * q) * slope;
+  return s->engaged ? force : 0.0;
+}
+
+// Softening.step: the bladder share, stiffer near the largest u so far.
+static double softening_step(const EffectsMuscle* k, const double* v, double* m, const EffectSample* s) {
+  double u = fabs(s->x) * (1.0 + s->P / 0.5e6);
+  m[0] = s->first ? u : (m[0] >= u ? m[0] : u);
+  double bladder = -fx_bladder_tension(k, s->P, s->L);
+  double force = v[0] * exp(-(m[0] - u) / v[1]) * bladder;
+  return s->engaged ? force : 0.0;
+}
+
+// Drift.step: a first-order approach in the time since the start.
+static double drift_step(const double* v, const EffectSample* s) {
+  double tau = v[3];
+  double ramp = tau * -expm1(-s->t / tau);
+  double force = (v[0] + v[1] * s->x + v[2] * s->P / 1e6) * ramp;
+  return s->engaged ? force : 0.0;
+}
+
+// PressureLag.step less the lag MuJoCo already applies: P_i = lag(P - g) = P_seen - lag(g) with
+// g = tau (P + P_atm) dV/dt / V; y = lag(g) and V_prev are the state. Returns the change of the
+// force the muscle's own evaluation (at P_seen) wrote.
+static double pressure_lag_step(const EffectsMuscle* k, const double* v, double* y, const EffectSample* s) {
+  double tau = v[0];
+  double V = fx_gas_volume(k, s->L);
+  if (s->first) {
+    y[0] = 0.0;
+    y[1] = V;
+    return 0.0;
+  }
+  double g = tau * (s->P + EFFECT_P_ATM) * (V - y[1]) / (s->dt > 1e-12 ? s->dt : 1e-12) / V;
+  y[0] += (1.0 - exp(-s->dt / tau)) * (g - y[0]);
+  y[1] = V;
+  double total = s->engaged ? fx_push(k, s->P_seen - y[0], s->L) : fx_push(k, s->P, s->L);
+  return total - s->base;
+}
+
+// The effects' force for one actuator; advances `state` (its block) by one sample.
+static double effects_step(const EffectsConfig* fx, double* state, const EffectSample* s) {
+  double force = 0.0;
+  for (int n = 0; n < fx->count; n++) {
+    EffectKind e = fx->kind[n];
+    const double* v = fx->value[e];
+    double* own = state + fx->state_offset[e];
+    switch (e) {
+      case FX_FRICTION:
+        force += friction_step(&fx->muscle, v, own, s);
+        break;
+      case FX_VISCOELASTICITY:
+        force += viscoelasticity_step(v, own, s);
+        break;
+      case FX_END_EFFECTS:
+        force += end_effects_step(&fx->muscle, v, s);
+        break;
+      case FX_BRAID_COMPLIANCE:
+        force += braid_compliance_step(&fx->muscle, v, s);
+        break;
+      case FX_SOFTENING:
+        force += softening_step(&fx->muscle, v, own, s);
+        break;
+      case FX_DRIFT:
+        force += drift_step(v, s);
+        break;
+      case FX_PRESSURE_LAG:
+        force += pressure_lag_step(&fx->muscle, v, own, s);
+        break;
+      default:
+        break;
+    }
+  }
+  return force;
+}
+
+// The measured pressure: the clamped (and delayed) control, as MuJoCo feeds its filter.
+static double measured_pressure(const mjModel* m, const mjData* d, int i) {
+  int u = m->actuator_ctrladr[i];
+  double ctrl = d->ctrl[u];
+  if (m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
+    double interpolated;
+    const mjtNum* read = mj_readCtrl(m, d, i, d->time, &interpolated, m->actuator_history[2 * i + 1]);
+    ctrl = read ? *read : interpolated;
+  }
+  if (m->actuator_ctrllimited[u] && !mjDISABLED(mjDSBL_CLAMPCTRL)) {
+    ctrl = fx_clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
+  }
+  return ctrl;
+}
+
+static int all_finite(const double* x, int n) {
+  for (int i = 0; i < n; i++) {
+    if (!isfinite(x[i])) {
+      return 0;
+    }
+  }
+  return 1;
+}
+
+// The compute hook: after the muscle's own forces are in d->actuator_force, add the effects'
+// forces of every actuator of the instance, from the committed state; write the new state into
+// the pending blocks (see the top of the file).
+static void effects_add_forces(const mjModel* m, mjData* d, int instance, const EffectsConfig* fx,
+                               const int* actuator, int nactuator) {
+  int block = fx->block;
+  if (!block || m->plugin_statenum[instance] != 2 * nactuator * block + 2) {
+    return;
+  }
+  double* committed = d->plugin_state + m->plugin_stateadr[instance];
+  double* pending = committed + nactuator * block;
+  double* flag = pending + nactuator * block;  // [pending_valid, pending_time]
+  int store = m->opt.integrator != mjINT_RK4 || flag[0] == 0.0 || d->time <= flag[1];
+  double work[EFFECT_HEADER_STATE + 2 * NEFFECT];
+  for (int k = 0; k < nactuator; k++) {
+    int i = actuator[k];
+    int out = m->actuator_outadr[i];
+    const double* old = committed + k * block;
+    memcpy(work, old, sizeof(double) * (size_t)block);
+    EffectSample s;
+    s.L = d->actuator_length[out];
+    s.P_seen = actuator_pressure(m, d, i);
+    s.P = fx->pressure_lag ? measured_pressure(m, d, i) : s.P_seen;
+    s.base = d->actuator_force[out];
+    s.first = old[0] == 0.0;
+    double t_first = s.first ? d->time : old[1];
+    s.t = d->time - t_first;
+    s.dt = s.first ? 0.0 : fx_max0(d->time - old[2]);
+    s.L_prev = s.first ? s.L : old[3];
+    s.P_prev = s.first ? s.P : old[4];
+    s.x = s.L / fx->muscle.rest_length - 1.0;
+    if (!fx->muscle.tension_only) {
+      s.engaged = 1;
+    } else {  // effects.py: engaged where the model (at the measured pressure) is not slack
+      s.engaged = (fx->pressure_lag ? fx_push(&fx->muscle, s.P, s.L) : s.base) != 0.0;
+    }
+    double force = 0.0;
+    if (isfinite(s.L) && isfinite(s.P) && isfinite(s.P_seen)) {
+      work[0] = 1.0;
+      work[1] = t_first;
+      work[2] = d->time;
+      work[3] = s.L;
+      work[4] = s.P;
+      force = effects_step(fx, work, &s);
+    }
+    if (!isfinite(force) || !all_finite(work, block)) {
+      force = 0.0;
+      memcpy(work, old, sizeof(double) * (size_t)block);
+    }
+    d->actuator_force[out] = s.base + force;
+    if (store) {
+      memcpy(pending + k * block, work, sizeof(double) * (size_t)block);
+    }
+  }
+  if (store) {
+    flag[0] = 1.0;
+    flag[1] = d->time;
+  }
+}
+
+// mjpPlugin.advance: commit the pending state (once per mj_step, after integration).
+static void effects_advance(const mjModel* m, mjData* d, int instance) {
+  int n = m->plugin_statenum[instance];
+  if (n < 2) {
+    return;
+  }
+  double* state = d->plugin_state + m->plugin_stateadr[instance];
+  int half = (n - 2) / 2;
+  if (state[n - 2] != 0.0) {
+    memcpy(state, state + half, sizeof(double) * (size_t)half);
+    state[n - 2] = 0.0;
+  }
+}
+
+// mjpPlugin.reset: nothing started (the first step initialises every state, as effects.py).
+static void effects_reset(const mjModel* m, mjtNum* plugin_state, int instance) {
+  int n = m->plugin_statenum[instance];
+  for (int i = 0; i < n; i++) {
+    plugin_state[i] = 0.0;
+  }
+}
