@@ -13,6 +13,13 @@ base, so the tendon length is the muscle length. Three modes:
 
 ``rig_xml`` returns the MJCF; ``models/rig_*.xml`` are these for FAM1. The measuring functions
 below build a rig, run MuJoCo and return what a bench test would.
+
+Effects identified by ``efam diagnose`` switch on with ``RigOptions(effects=[(name, parameters),
+...])``: the actuator-force terms run inside the plugin (config keys ``effects`` and
+``<effect>.<parameter>``, see efam_effects.h), ``pressure_lag`` on the actuator's own
+``filterexact`` lag, and ``force_offset`` (a load-cell zero error) in the load-cell reading
+(``load_cell_N``; the model file keeps it as ``<numeric name="load_cell_offset_N">``).
+``replay`` drives the stroke rig with a recording's length and pressure, sample by sample.
 """
 
 from __future__ import annotations
@@ -23,13 +30,15 @@ import mujoco
 import numpy as np
 
 from .muscle import Muscle
+from .plugin import actuator_dynamics, effects_config, plugin_config
 from .plugin import load as load_plugin
-from .plugin import plugin_config
 
 MODES = ("stroke", "free", "loaded")
 TIMESTEP_S = 1e-3
 PLATE_MASS_KG = 0.05  # an aluminium end fitting and swage tube (paper Table 1): about 32 g
 PLATE_DAMPING_NS_PER_M = 20.0
+P_ATM = 101325.0  # a gauge pressure is never below -1 atm
+LOAD_CELL_OFFSET = "load_cell_offset_N"  # <numeric> holding the force_offset effect
 
 
 @dataclass(frozen=True)
@@ -40,23 +49,52 @@ class RigOptions:
     plate_mass_kg: float = PLATE_MASS_KG
     damping_Ns_per_m: float = PLATE_DAMPING_NS_PER_M
     timestep_s: float = TIMESTEP_S
+    # effects switched on: [(name, parameters), ...] as EffectModel / Diagnosis hold them
+    effects: tuple = ()
+    min_pressure_Pa: float = 0.0  # the control's lower bound (a replay passes noise below 0 through)
 
     def __post_init__(self):
         if self.mode not in MODES:
             raise ValueError(f"rig mode '{self.mode}' unknown (known: {', '.join(MODES)})")
         if self.pressure_lag_s is not None and not self.pressure_lag_s > 0:
             raise ValueError("pressure_lag_s must be positive (or None for no lag)")
+        if not -P_ATM <= self.min_pressure_Pa < self.max_pressure_Pa:
+            raise ValueError(f"min_pressure_Pa must be in [-{P_ATM:g}, max_pressure_Pa)")
+        object.__setattr__(self, "effects", tuple(self.effects))
+        actuator_dynamics(self.effects, self.pressure_lag_s)  # one lag, or an error
+        load_cell_offset(self.effects)  # validates every effect's parameters
 
 
-def actuator_xml(muscle: Muscle, name: str, tendon: str, max_pressure_Pa: float, lag_s: float | None) -> str:
-    """The ``<plugin>`` actuator element driving ``tendon`` with ``muscle``."""
-    dynamics = f' dyntype="filterexact" dynprm="{lag_s!r}" actdim="1"' if lag_s else ""
+def load_cell_offset(effects) -> float:
+    """The ``force_offset`` effect's ``offset_N`` (0 without it): what the load cell reads at zero
+    force. Every effect is validated on the way (an error names the effect and key)."""
+    effects_config(effects)
+    for effect in effects or ():
+        name, values = (effect["name"], effect["parameters"]) if isinstance(effect, dict) else effect
+        if name == "force_offset":
+            return float(values["offset_N"])
+    return 0.0
+
+
+def actuator_xml(
+    muscle: Muscle,
+    name: str,
+    tendon: str,
+    max_pressure_Pa: float,
+    lag_s: float | None,
+    effects=(),
+    min_pressure_Pa: float = 0.0,
+) -> str:
+    """The ``<plugin>`` actuator element driving ``tendon`` with ``muscle`` (and ``effects``)."""
+    dynamics = actuator_dynamics(effects, lag_s)
     config = "".join(
-        f'\n      <config key="{key}" value="{value}"/>' for key, value in plugin_config(muscle).items()
+        f'\n      <config key="{key}" value="{value}"/>'
+        for key, value in plugin_config(muscle, effects).items()
     )
+    low = repr(float(min_pressure_Pa)) if min_pressure_Pa else "0"
     return (
         f'    <plugin name="{name}" plugin="efam.muscle" tendon="{tendon}" ctrllimited="true" '
-        f'ctrlrange="0 {max_pressure_Pa!r}"{dynamics}>{config}\n    </plugin>\n'
+        f'ctrlrange="{low} {max_pressure_Pa!r}"{dynamics}>{config}\n    </plugin>\n'
     )
 
 
@@ -79,6 +117,17 @@ def rig_xml(muscle: Muscle, options: RigOptions = RigOptions()) -> str:
         '    <actuatorfrc name="load_cell" actuator="muscle"/>\n'
         '    <tendonpos name="muscle_length" tendon="muscle_path"/>\n'
     )
+    actuator = actuator_xml(
+        muscle, "muscle", "muscle_path", options.max_pressure_Pa, options.pressure_lag_s,
+        options.effects, options.min_pressure_Pa,
+    )  # fmt: skip
+    offset = load_cell_offset(options.effects)
+    custom = ""
+    if offset:
+        custom = (
+            "  <!-- force_offset: the load cell reads this at zero force (rig.load_cell_N adds it) -->\n"
+            f'  <custom>\n    <numeric name="{LOAD_CELL_OFFSET}" data="{offset!r}"/>\n  </custom>\n'
+        )
     return f"""<mujoco model="efam_rig_{mode}">
   <!-- {muscle.name or "muscle"} on the {mode} rig; generated by efam_mujoco.rig -->
   <extension>
@@ -102,10 +151,10 @@ def rig_xml(muscle: Muscle, options: RigOptions = RigOptions()) -> str:
     </spatial>
   </tendon>
   <actuator>
-{actuator_xml(muscle, "muscle", "muscle_path", options.max_pressure_Pa, options.pressure_lag_s)}{load_actuator}  </actuator>
+{actuator}{load_actuator}  </actuator>
   <sensor>
 {sensors}  </sensor>
-</mujoco>
+{custom}</mujoco>
 """
 
 
@@ -116,10 +165,24 @@ def build_rig(muscle: Muscle, options: RigOptions = RigOptions()) -> tuple[mujoc
 
 
 # ------------------------------------------------------------------------------- measurements
-def stroke_forces(muscle: Muscle, pressure_Pa: float, lengths_m, settle_s: float = 0.0) -> np.ndarray:
+def load_cell_N(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """What the rig's load cell reads (push positive): the muscle's force plus the load cell's
+    zero error (the ``force_offset`` effect, kept in the model as a ``<numeric>``)."""
+    return float(data.sensordata[model.sensor("load_cell").adr[0]]) + _zero_error(model)
+
+
+def _zero_error(model: mujoco.MjModel) -> float:
+    try:
+        return float(model.numeric(LOAD_CELL_OFFSET).data[0])
+    except KeyError:
+        return 0.0
+
+
+def stroke_forces(
+    muscle: Muscle, pressure_Pa: float, lengths_m, settle_s: float = 0.0, effects=()
+) -> np.ndarray:
     """Displacement-controlled test: the load cell (push positive) at each prescribed length."""
-    model, data = build_rig(muscle, RigOptions(mode="stroke"))
-    sensor = model.sensor("load_cell").adr[0]
+    model, data = build_rig(muscle, RigOptions(mode="stroke", effects=effects))
     forces = []
     for length in np.atleast_1d(lengths_m):
         data.mocap_pos[0] = (0.0, 0.0, float(length))
@@ -127,8 +190,57 @@ def stroke_forces(muscle: Muscle, pressure_Pa: float, lengths_m, settle_s: float
         for _ in range(max(1, int(round(settle_s / model.opt.timestep)))):
             mujoco.mj_step(model, data)
         mujoco.mj_forward(model, data)
-        forces.append(data.sensordata[sensor])
+        forces.append(load_cell_N(model, data))
     return np.asarray(forces)
+
+
+def replay(recording, muscle: Muscle, effects=()) -> np.ndarray:
+    """The stroke rig driven by a recording, sample by sample (:func:`replay_rig`, :func:`drive`):
+    what the load cell reads at each sample (N, push positive), with ``effects`` switched on."""
+    model, data = replay_rig(recording, muscle, effects)
+    return drive(model, data, recording)
+
+
+def replay_rig(recording, muscle: Muscle, effects=()) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The stroke rig ready to replay ``recording``: its control range passes every recorded
+    pressure through (noise below zero gauge included, as the recording has it), and a filtered
+    pressure (``pressure_lag``) starts at the first sample's, as ``effects.lag`` does."""
+    P = np.asarray(recording.pressure_Pa, dtype=float)
+    options = RigOptions(
+        mode="stroke",
+        effects=effects,
+        min_pressure_Pa=-P_ATM,
+        max_pressure_Pa=max(RigOptions.max_pressure_Pa, float(np.max(P))),
+    )
+    model, data = build_rig(muscle, options)
+    if model.na:
+        data.act[:] = P[0]
+    return model, data
+
+
+def drive(model: mujoco.MjModel, data: mujoco.MjData, recording, samples=None) -> np.ndarray:
+    """Step a stroke rig through ``recording`` (or its ``samples``, a range of indices), one
+    mj_step per sample: the plate (mocap) at the recorded length, the control at the recorded
+    pressure, MuJoCo's time the recording's (from its first sample) and the step's timestep the
+    interval since the previous sample -- what the plugin's effect states and a ``filterexact``
+    pressure lag integrate over, as ``EffectModel.push_stepwise`` does. Returns the load-cell
+    readings; each is read in the forward pass of its step, at that sample's inputs."""
+    time = np.asarray(recording.time_s, dtype=float)
+    if len(time) > 1 and not np.all(np.diff(time) > 0):
+        raise ValueError("replay: the recording's time must increase strictly")
+    t0 = float(time[0])
+    sensor = model.sensor("load_cell").adr[0]
+    indices = range(len(time)) if samples is None else samples
+    out = np.empty(len(indices))
+    for j, k in enumerate(indices):
+        if k:
+            model.opt.timestep = float(time[k] - time[k - 1])
+        data.time = float(time[k]) - t0
+        data.mocap_pos[0, 2] = recording.length_m[k]
+        data.ctrl[0] = recording.pressure_Pa[k]
+        mujoco.mj_step(model, data)
+        out[j] = data.sensordata[sensor]
+    return out + _zero_error(model)
 
 
 def blocked_force(muscle: Muscle, pressure_Pa: float) -> float:

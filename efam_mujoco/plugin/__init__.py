@@ -2,7 +2,10 @@
 
 ``load()`` is called by ``import efam_mujoco``; after it, any model that uses
 ``<plugin plugin="efam.muscle">`` compiles. ``plugin_config(muscle)`` gives the ``<config>``
-key/value strings for a :class:`~efam_mujoco.muscle.Muscle`.
+key/value strings for a :class:`~efam_mujoco.muscle.Muscle`; ``plugin_config(muscle, effects)``
+also switches on effect terms identified by ``efam diagnose`` (``efam_effects.h``: config key
+``effects`` and ``<effect>.<parameter>``), and ``actuator_dynamics(effects)`` gives the actuator
+attributes ``pressure_lag`` needs.
 
 The library is built from ``efam_muscle.c`` by ``pip install`` (see setup.py). It is not linked
 against ``libmujoco``; its MuJoCo symbols are resolved from the ``libmujoco`` that the ``mujoco``
@@ -117,8 +120,14 @@ def _number(value: float) -> str:
     return repr(float(value))
 
 
-def plugin_config(muscle: Muscle) -> dict[str, str]:
-    """The ``<config key=... value=...>`` pairs of the efam.muscle plugin for ``muscle``."""
+#: Effects that are not actuator forces: the rig adds them to its sensors, not the plugin.
+SENSOR_EFFECTS = ("force_offset",)
+
+
+def plugin_config(muscle: Muscle, effects=None) -> dict[str, str]:
+    """The ``<config key=... value=...>`` pairs of the efam.muscle plugin for ``muscle``, with
+    the ``effects`` (``[(name, parameters), ...]``, as ``EffectModel`` and ``Diagnosis.effects``
+    hold them) switched on; see :func:`effects_config`."""
     config = {
         "rest_length_m": _number(muscle.rest_length_m),
         "rest_diameter_m": _number(muscle.rest_diameter_m),
@@ -131,29 +140,89 @@ def plugin_config(muscle: Muscle) -> dict[str, str]:
         config[key] = _number(value)
     config["tension_only"] = "1" if muscle.tension_only else "0"
     config["lock_stiffness_N_per_m"] = _number(muscle.lock_stiffness_N_per_m)
+    config.update(effects_config(effects))
     return config
 
 
-def config_xml(muscle: Muscle, indent: str = "") -> str:
-    """The ``<config>`` elements for ``muscle``, one per line."""
-    return "\n".join(f'{indent}<config key="{k}" value="{v}"/>' for k, v in plugin_config(muscle).items())
+def effects_config(effects=None) -> dict[str, str]:
+    """The plugin keys that switch ``effects`` on: ``effects`` = their names, comma-separated, and
+    each parameter as ``<effect>.<key>`` (e.g. ``friction.f0_N``). ``effects`` is a list of
+    ``(name, parameters)`` or of dicts with ``name`` and ``parameters`` (``Diagnosis.effects``).
+    Parameters are checked against the library's bounds (an error names the effect and key).
+    ``force_offset``, a load-cell error, is left to the rig's load cell; per-recording values
+    (``*_by_recording``) are dropped: pass the effects of one recording. Empty for no effects."""
+    if not effects:
+        return {}
+    from ..diagnose.effects import check_values  # the library's keys and bounds (imports scipy)
+
+    keys: dict[str, str] = {}
+    names = []
+    for name, values in _effect_pairs(effects):
+        values = check_values(name, dict(values))
+        if name in SENSOR_EFFECTS:
+            continue
+        if name in names:
+            raise ValueError(f"effect '{name}' is given twice")
+        names.append(name)
+        for key, value in values.items():
+            if not key.endswith("_by_recording"):
+                keys[f"{name}.{key}"] = _number(value)
+    return {"effects": ",".join(names), **keys} if names else {}
 
 
-def instance_xml(name: str, muscle: Muscle, indent: str = "") -> str:
+def _effect_pairs(effects) -> list[tuple[str, dict]]:
+    out = []
+    for effect in effects or ():
+        if isinstance(effect, dict):
+            out.append((effect["name"], effect["parameters"]))
+        else:
+            name, values = effect
+            out.append((name, values))
+    return out
+
+
+def actuator_dynamics(effects=None, lag_s: float | None = None) -> str:
+    """Attributes of the ``<plugin>`` actuator element for its pressure dynamics: a valve/tube lag
+    ``lag_s`` (MuJoCo ``filterexact``), or the ``pressure_lag`` effect's (the plugin adds the gas
+    volume term to MuJoCo's lag, so the two time constants must be one; ``actearly`` makes the
+    lag include the current sample, as the effect's reference does). Empty for no dynamics."""
+    tau = dict(_effect_pairs(effects)).get("pressure_lag", {}).get("tau_s")
+    if tau is not None:
+        if lag_s is not None and float(lag_s) != float(tau):
+            raise ValueError(
+                f"the actuator's pressure lag {lag_s!r} s and effect pressure_lag tau_s = {tau!r} s are "
+                "one first-order lag: give one of them"
+            )
+        return f' dyntype="filterexact" dynprm="{_number(tau)}" actdim="1" actearly="true"'
+    if lag_s:
+        return f' dyntype="filterexact" dynprm="{_number(lag_s)}" actdim="1"'
+    return ""
+
+
+def config_xml(muscle: Muscle, indent: str = "", effects=None) -> str:
+    """The ``<config>`` elements for ``muscle`` (with ``effects`` switched on), one per line."""
+    config = plugin_config(muscle, effects)
+    return "\n".join(f'{indent}<config key="{k}" value="{v}"/>' for k, v in config.items())
+
+
+def instance_xml(name: str, muscle: Muscle, indent: str = "", effects=None) -> str:
     """A named ``<instance>`` for ``<extension><plugin plugin="efam.muscle">``.
 
     Actuators written ``<plugin instance="NAME" tendon=.../>`` then share it. One instance per
     distinct muscle is cheaper than one per actuator: MuJoCo visits every plugin instance in
     several stages of each step, whatever it computes.
     """
-    body = config_xml(muscle, indent + "  ")
+    body = config_xml(muscle, indent + "  ", effects)
     return f'{indent}<instance name="{name}">\n{body}\n{indent}</instance>'
 
 
 __all__ = [
     "PLUGIN_NAME",
     "PluginLoadError",
+    "SENSOR_EFFECTS",
+    "actuator_dynamics",
     "config_xml",
+    "effects_config",
     "instance_xml",
     "is_loaded",
     "library_path",
