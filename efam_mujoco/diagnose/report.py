@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import write_text_atomic
-from . import Diagnosis, diagnose
+from . import Diagnosis, _for_recording, diagnose
 from .effects import get
 
 
@@ -51,6 +51,13 @@ def text(d: Diagnosis) -> str:
     )
     if d.effects:
         out.append("Switch on: " + "; ".join(f"{e['name']}: {get(e['name']).plugin}" for e in d.effects))
+        forces = [n for n in d.names if n != "force_offset"]
+        plugin = f'efam.muscle config key effects="{",".join(forces)}"' if forces else ""
+        sensor = "the load cell's zero (force_offset)" if "force_offset" in d.names else ""
+        out.append(
+            "In MuJoCo: " + " and ".join(x for x in (plugin, sensor) if x)
+            + " (--report DIR writes DIR/rig_with_effects.xml)"
+        )  # fmt: skip
     return "\n".join(out) + "\n"
 
 
@@ -60,18 +67,33 @@ def _value(key, value) -> str:
     return f"{key} = {value:.4g}"
 
 
+def effects_for_recording(d: Diagnosis, i: int = 0) -> list[tuple[str, dict]]:
+    """The identified effects as ``[(name, parameters)]`` with recording ``i``'s own per-recording
+    values (its load-cell zero): what ``EffectModel``, ``plugin_config`` and the rig take."""
+    return _for_recording(d.effects, i)
+
+
 def plugin_config(d: Diagnosis) -> dict[str, str]:
-    """Config keys a plugin would take for the identified effects (see docs/diagnosis.md)."""
-    keys: dict[str, str] = {}
-    names = [e["name"] for e in d.effects if e["name"] != "force_offset"]
-    if names:
-        keys["effects"] = ",".join(names)
-    for e in d.effects:
-        if e["name"] == "force_offset":
-            continue  # a sensor error: the rig's load cell adds it, not the actuator
-        for k, v in e["parameters"].items():
-            keys[f"{e['name']}.{k}"] = repr(float(v))  # force_offset (the only list) is skipped
-    return keys
+    """The efam.muscle ``<config>`` of the re-fitted muscle with the identified actuator-force
+    effects switched on (keys ``effects`` and ``<effect>.<parameter>``; see docs/diagnosis.md).
+    ``force_offset`` is a load-cell error: the rig adds it to its reading (``rig_with_effects``)."""
+    from ..plugin import plugin_config as config
+
+    return config(d.muscle_after, effects_for_recording(d))
+
+
+def rig_with_effects(d: Diagnosis, i: int = 0) -> str:
+    """The stroke rig (MJCF) for the re-fitted muscle with the identified effects switched on, the
+    load-cell zero of recording ``i``: ``efam view`` opens it; ``rig.drive`` replays into it."""
+    from ..rig import RigOptions, rig_xml
+
+    xml = rig_xml(d.muscle_after, RigOptions(mode="stroke", effects=effects_for_recording(d, i)))
+    names = ", ".join(d.names) or "none"
+    source = d.sources[i] if i < len(d.sources) and d.sources[i] else f"recording {i + 1}"
+    source = source.replace("--", "- -")  # an XML comment may not hold "--"
+    note = f"  <!-- efam diagnose: effects switched on: {names}; load-cell zero of {source} -->\n"
+    head, _, body = xml.partition("\n")
+    return f"{head}\n{note}{body}"
 
 
 def write_json(path, d: Diagnosis) -> Path:
@@ -262,6 +284,8 @@ def run(args) -> int:
         directory = Path(args.report)
         directory.mkdir(parents=True, exist_ok=True)
         write_text_atomic(directory / "report.txt", report)
+        write_text_atomic(directory / "rig_with_effects.xml", rig_with_effects(d))
+        print(f"model: {directory / 'rig_with_effects.xml'} (the re-fitted muscle, effects switched on)")
         for path in figures(d, directory):
             print(f"figure: {path}")
     return 0
