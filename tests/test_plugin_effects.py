@@ -91,6 +91,20 @@ def test_all_effects_at_once_on_a_tension_only_muscle(bench):
     assert_same_force(rig.replay(recording, muscle, effects), reference)
 
 
+def test_irregular_sampling_steps_by_each_interval():
+    # each mj_step lasts the interval since the previous sample: the plugin's states and MuJoCo's
+    # filterexact lag integrate over the same dt as the reference
+    muscle = load_muscle("FAM1")
+    rng = np.random.default_rng(3)
+    n = 700
+    t = np.cumsum(rng.uniform(0.02, 0.08, n))
+    L = muscle.rest_length_m * (1 + 0.6 * np.clip(np.sin(np.linspace(-0.6, 2 * np.pi, n)), 0, None))
+    P = np.minimum(t / 3.0, 1.0) * 300e3 + 5e3 * np.sin(7 * t)
+    recording = Recording(t, L, P, np.zeros(n))
+    effects = [(k, VALUES[k]) for k in ("viscoelasticity", "drift", "pressure_lag")]
+    assert_same_force(rig.replay(recording, muscle, effects), stepwise(muscle, effects, recording))
+
+
 def shared_instance_xml(muscle, effects, n):
     """n muscles on mocap plates side by side, all driven by one plugin instance (batched)."""
     L0 = muscle.rest_length_m
