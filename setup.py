@@ -72,6 +72,7 @@ setup(
         Extension(
             f"efam_mujoco.plugin.{LIBRARY_NAME}",
             sources=[PLUGIN_SOURCE],
+            depends=["efam_mujoco/plugin/efam_effects.h"],
             extra_compile_args=compile_args,
             libraries=[] if sys.platform == "win32" else ["m"],
         )

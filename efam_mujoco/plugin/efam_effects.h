@@ -327,49 +327,18 @@ static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx,
 
 // ------------------------------------------------------------------ Eq. 2, as effects.py uses it
 
-static double effects_pow(double x, double y) {  // libm pow, as Python's float ** (see libm_pow)
-  double (*volatile fn)(double, double) = pow;
-  return fn(x, y);
-}
-
-static double fx_max0(double x) { return x > 0.0 ? x : 0.0; }
-
-static double fx_clip(double x, double lo, double hi) {
-  double y = x > lo ? x : lo;
-  return y < hi ? y : hi;
-}
-
-static double fx_signed_power(double e, double p) { return ((e > 0.0) - (e < 0.0)) * pow(fabs(e), p); }
-
-// StressLaw.__call__
+// StressLaw.__call__ (law_stress in efam_muscle.c)
 static double fx_stress(const EffectsMuscle* k, double e, double P) {
-  const double* c = k->coef;
-  double linear = (c[0] + c[1] * P) * e;
-  switch (k->law) {
-    case LAW_POLYNOMIAL:
-      return linear + (c[2] * (e * e) + c[3] * pow(e, 3.0));
-    case LAW_EXP_DECAY:
-      return linear + c[2] * (1.0 - exp(-c[3] * e));
-    case LAW_EXPONENT:
-      return linear + c[0] * (fx_signed_power(e, c[2]) + fx_signed_power(e, c[3]));
-    case LAW_SIGMOID:
-      return linear + c[2] * tanh(c[3] * e);
-    case LAW_ARCCOT:
-      return linear + k->arccot_scale * atan(c[3] * e);
-    default:
-      return linear;
-  }
+  return law_stress(k->law, k->coef, k->arccot_scale, e, P);
 }
 
 // Muscle.outer_radius (Eq. 10) at a length as given (not clipped).
 static double fx_outer_radius(const EffectsMuscle* k, double L) {
-  return sqrt(fx_max0(k->thread_sq_pow - L * L)) / (2 * M_PI * k->turns);
+  return sqrt(max0(k->thread_sq_pow - L * L)) / (2 * M_PI * k->turns);
 }
 
 // Eq. 11 (Muscle._wall)
-static double fx_wall(const EffectsMuscle* k, double L, double r_out) {
-  return r_out - sqrt(fx_max0(r_out * r_out - k->bladder_volume / (M_PI * L)));
-}
+static double fx_wall(const EffectsMuscle* k, double L, double r_out) { return wall(k->bladder_volume, L, r_out); }
 
 // The bladder's two stress terms of Eq. 2 at a clipped length (effects.bladder_tension).
 static double fx_bladder_terms(const EffectsMuscle* k, double P, double L, double r_out, double t) {
@@ -385,17 +354,17 @@ static double fx_tension(const EffectsMuscle* k, double pressure, double length)
   if (!isfinite(pressure) || !isfinite(length)) {
     return 0.0;
   }
-  double P = fx_max0(pressure);
-  double L = fx_clip(length, k->min_length, k->max_length);
+  double P = max0(pressure);
+  double L = clip(length, k->min_length, k->max_length);
   double r_out = fx_outer_radius(k, L);
   double t = fx_wall(k, L, r_out);
-  double gauge = fx_max0(P - k->deadband);
+  double gauge = max0(P - k->deadband);
   double N = k->turns;
   double force = gauge / (4 * M_PI * N * N) * (3 * L * L - k->thread * k->thread) +
                  fx_bladder_terms(k, P, L, r_out, t);
   force = force + k->lock_stiffness * (length - L);
   if (k->tension_only) {
-    force = fx_max0(force);
+    force = max0(force);
   }
   return force;
 }
@@ -404,28 +373,28 @@ static double fx_push(const EffectsMuscle* k, double P, double L) { return -fx_t
 
 // effects.tension_with_thread: Eq. 2 with the thread length scaled (no lock-out, not one-sided).
 static double fx_tension_with_thread(const EffectsMuscle* k, double pressure, double length, double scale) {
-  double P = fx_max0(pressure);
-  double L = fx_clip(length, k->min_length, k->max_length);
+  double P = max0(pressure);
+  double L = clip(length, k->min_length, k->max_length);
   double B = k->thread * scale;
   double N = k->turns;
-  double r_out = sqrt(fx_max0(B * B - L * L)) / (2 * M_PI * N);
+  double r_out = sqrt(max0(B * B - L * L)) / (2 * M_PI * N);
   double t = fx_wall(k, L, r_out);
-  double gauge = fx_max0(P - k->deadband);
+  double gauge = max0(P - k->deadband);
   return gauge / (4 * M_PI * N * N) * (3 * L * L - B * B) + fx_bladder_terms(k, P, L, r_out, t);
 }
 
 // effects.bladder_tension
 static double fx_bladder_tension(const EffectsMuscle* k, double pressure, double length) {
-  double L = fx_clip(length, k->min_length, k->max_length);
+  double L = clip(length, k->min_length, k->max_length);
   double r_out = fx_outer_radius(k, L);
-  return fx_bladder_terms(k, fx_max0(pressure), L, r_out, fx_wall(k, L, r_out));
+  return fx_bladder_terms(k, max0(pressure), L, r_out, fx_wall(k, L, r_out));
 }
 
 // effects.gas_volume: pi R_o(L)^2 L - V_B, at least 1e-9 m^3.
 static double fx_gas_volume(const EffectsMuscle* k, double length) {
-  double L = fx_clip(length, k->min_length, k->max_length);
+  double L = clip(length, k->min_length, k->max_length);
   double r_out = fx_outer_radius(k, L);
-  double V = M_PI * effects_pow(r_out, 2) * L - k->bladder_volume;
+  double V = M_PI * libm_pow(r_out, 2) * L - k->bladder_volume;
   return V > 1e-9 ? V : 1e-9;
 }
 
@@ -447,7 +416,7 @@ static double friction_step(const EffectsMuscle* k, const double* v, double* z, 
   double dx = (s->L - s->L_prev) / k->rest_length;
   z[0] = fx_clip1(z[0] + dx / v[4]);
   z[1] = fx_clip1(z[1] + (s->P - s->P_prev) / (v[5] * 1e3));
-  double sign_p = -copysign(1.0, 3 * effects_pow(s->L, 2) - k->thread_sq_pow);
+  double sign_p = -copysign(1.0, 3 * libm_pow(s->L, 2) - k->thread_sq_pow);
   double p = s->P / 1e6;
   double force = -(v[0] + v[1] * p) * z[0];
   force -= (v[2] + v[3] * p) * sign_p * z[1];
@@ -566,7 +535,7 @@ static double measured_pressure(const mjModel* m, const mjData* d, int i) {
     ctrl = read ? *read : interpolated;
   }
   if (m->actuator_ctrllimited[u] && !mjDISABLED(mjDSBL_CLAMPCTRL)) {
-    ctrl = fx_clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
+    ctrl = clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
   }
   return ctrl;
 }
@@ -607,7 +576,7 @@ static void effects_add_forces(const mjModel* m, mjData* d, int instance, const 
     s.first = old[0] == 0.0;
     double t_first = s.first ? d->time : old[1];
     s.t = d->time - t_first;
-    s.dt = s.first ? 0.0 : fx_max0(d->time - old[2]);
+    s.dt = s.first ? 0.0 : max0(d->time - old[2]);
     s.L_prev = s.first ? s.L : old[3];
     s.P_prev = s.first ? s.P : old[4];
     s.x = s.L / fx->muscle.rest_length - 1.0;

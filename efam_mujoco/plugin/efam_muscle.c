@@ -85,6 +85,51 @@ static const char* const kAttributes[] = {
 #define NATTRIBUTE ((int)(sizeof(kAttributes) / sizeof(kAttributes[0])))
 #define FIRST_COEF_ATTRIBUTE 8
 
+// ----------------------------------------------------- scalar helpers (shared with efam_effects.h)
+
+// pow through a volatile pointer: the compiler must not turn pow(x, 2.0) into x*x, which can
+// differ from libm's pow in the last bit, and Python's float ** 2 calls libm's pow.
+static double libm_pow(double x, double y) {
+  double (*volatile fn)(double, double) = pow;
+  return fn(x, y);
+}
+
+static double max0(double x) { return x > 0.0 ? x : 0.0; }  // np.maximum(x, 0.0) for finite x
+
+static double clip(double x, double lo, double hi) {  // np.clip: minimum(maximum(x, lo), hi)
+  double y = x > lo ? x : lo;
+  return y < hi ? y : hi;
+}
+
+static double sign(double x) { return (x > 0.0) - (x < 0.0); }
+
+static double signed_power(double e, double p) { return sign(e) * pow(fabs(e), p); }
+
+// stress.StressLaw.__call__: (E1 + E2 P) eps + the law's non-linear term.
+static double law_stress(Law law, const double* c, double arccot_scale, double e, double P) {
+  double linear = (c[0] + c[1] * P) * e;
+  switch (law) {
+    case LAW_POLYNOMIAL:
+      return linear + (c[2] * (e * e) + c[3] * pow(e, 3.0));
+    case LAW_EXP_DECAY:
+      return linear + c[2] * (1.0 - exp(-c[3] * e));
+    case LAW_EXPONENT:
+      return linear + c[0] * (signed_power(e, c[2]) + signed_power(e, c[3]));
+    case LAW_SIGMOID:
+      return linear + c[2] * tanh(c[3] * e);
+    case LAW_ARCCOT:
+      return linear + arccot_scale * atan(c[3] * e);
+    default:
+      return linear;
+  }
+}
+
+// Eq. 11: t_B = R_o - sqrt(R_o^2 - V_B / (pi L)).
+static double wall(double volume, double L, double r_out) {
+  double inner_sq = max0(r_out * r_out - volume / (M_PI * L));
+  return r_out - sqrt(inner_sq);
+}
+
 // effect terms (config key `effects`): their own file; hooks below are marked efam_effects.h
 #include "efam_effects.h"
 
@@ -115,53 +160,13 @@ typedef struct {
   int actuator[];
 } Muscle;
 
-// pow through a volatile pointer: the compiler must not turn pow(x, 2.0) into x*x, which can
-// differ from libm's pow in the last bit, and Python's float ** 2 calls libm's pow.
-static double libm_pow(double x, double y) {
-  double (*volatile fn)(double, double) = pow;
-  return fn(x, y);
-}
-
-static double max0(double x) { return x > 0.0 ? x : 0.0; }  // np.maximum(x, 0.0) for finite x
-
-static double clip(double x, double lo, double hi) {  // np.clip: minimum(maximum(x, lo), hi)
-  double y = x > lo ? x : lo;
-  return y < hi ? y : hi;
-}
-
-static double sign(double x) { return (x > 0.0) - (x < 0.0); }
-
-static double signed_power(double e, double p) { return sign(e) * pow(fabs(e), p); }
-
-// stress.StressLaw.__call__: (E1 + E2 P) eps + the law's non-linear term.
 static double stress(const Muscle* mu, double e, double P) {
-  const double* c = mu->coef;
-  double linear = (c[0] + c[1] * P) * e;
-  switch (mu->law) {
-    case LAW_POLYNOMIAL:
-      return linear + (c[2] * (e * e) + c[3] * pow(e, 3.0));
-    case LAW_EXP_DECAY:
-      return linear + c[2] * (1.0 - exp(-c[3] * e));
-    case LAW_EXPONENT:
-      return linear + c[0] * (signed_power(e, c[2]) + signed_power(e, c[3]));
-    case LAW_SIGMOID:
-      return linear + c[2] * tanh(c[3] * e);
-    case LAW_ARCCOT:
-      return linear + mu->arccot_scale * atan(c[3] * e);
-    default:
-      return linear;
-  }
+  return law_stress(mu->law, mu->coef, mu->arccot_scale, e, P);
 }
 
 // Eq. 10: R_o(L) = sqrt(B^2 - L^2) / (2 pi N).
 static double outer_radius(const Muscle* mu, double L) {
   return sqrt(max0(mu->thread_sq_pow - L * L)) / mu->two_pi_turns;
-}
-
-// Eq. 11: t_B = R_o - sqrt(R_o^2 - V_B / (pi L)).
-static double wall(double volume, double L, double r_out) {
-  double inner_sq = max0(r_out * r_out - volume / (M_PI * L));
-  return r_out - sqrt(inner_sq);
 }
 
 // Muscle.tension for one (pressure, length): Eq. 2 with the documented out-of-range behaviour
@@ -322,6 +327,11 @@ static void tension_batch(const Muscle* mu, int n, const double* restrict pressu
       }
       break;
     case LAW_EXP_DECAY: {
+      // (gcc cannot see that the loop below fills the first n entries exp_batch reads)
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
       double x_z[BATCH], x_c[BATCH], exp_z[BATCH], exp_c[BATCH];
       for (int i = 0; i < n; i++) {
         x_z[i] = -c[3] * eps_z[i];
@@ -329,6 +339,9 @@ static void tension_batch(const Muscle* mu, int n, const double* restrict pressu
       }
       exp_batch(n, x_z, exp_z);
       exp_batch(n, x_c, exp_c);
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
       for (int i = 0; i < n; i++) {
         sigma_z[i] += c[2] * (1.0 - exp_z[i]);
         sigma_c[i] += c[2] * (1.0 - exp_c[i]);
