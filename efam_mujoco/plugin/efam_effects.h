@@ -525,20 +525,6 @@ static double effects_step(const EffectsConfig* fx, double* state, const EffectS
   return force;
 }
 
-// The measured pressure: the clamped (and delayed) control, as MuJoCo feeds its filter.
-static double measured_pressure(const mjModel* m, const mjData* d, int i) {
-  int u = m->actuator_ctrladr[i];
-  double ctrl = d->ctrl[u];
-  if (m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
-    double interpolated;
-    const mjtNum* read = mj_readCtrl(m, d, i, d->time, &interpolated, m->actuator_history[2 * i + 1]);
-    ctrl = read ? *read : interpolated;
-  }
-  if (m->actuator_ctrllimited[u] && !mjDISABLED(mjDSBL_CLAMPCTRL)) {
-    ctrl = clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
-  }
-  return ctrl;
-}
 
 static int all_finite(const double* x, int n) {
   for (int i = 0; i < n; i++) {

@@ -130,6 +130,21 @@ static double wall(double volume, double L, double r_out) {
   return r_out - sqrt(inner_sq);
 }
 
+// The measured pressure: the clamped (and delayed) control, as MuJoCo feeds its filter.
+static double measured_pressure(const mjModel* m, const mjData* d, int i) {
+  int u = m->actuator_ctrladr[i];
+  double ctrl = d->ctrl[u];
+  if (m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
+    double interpolated;
+    const mjtNum* read = mj_readCtrl(m, d, i, d->time, &interpolated, m->actuator_history[2 * i + 1]);
+    ctrl = read ? *read : interpolated;
+  }
+  if (m->actuator_ctrllimited[u] && !mjDISABLED(mjDSBL_CLAMPCTRL)) {
+    ctrl = clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
+  }
+  return ctrl;
+}
+
 // effect terms (config key `effects`): their own file; hooks below are marked efam_effects.h
 #include "efam_effects.h"
 
@@ -753,17 +768,7 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
 // actuator's activation; with actearly, the activation at the end of this step (as pid.cc).
 static double actuator_pressure(const mjModel* m, const mjData* d, int i) {
   if (m->actuator_dyntype[i] == mjDYN_NONE) {
-    int u = m->actuator_ctrladr[i];
-    double ctrl = d->ctrl[u];
-    if (m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
-      double interpolated;
-      const mjtNum* read = mj_readCtrl(m, d, i, d->time, &interpolated, m->actuator_history[2 * i + 1]);
-      ctrl = read ? *read : interpolated;
-    }
-    if (m->actuator_ctrllimited[u] && !mjDISABLED(mjDSBL_CLAMPCTRL)) {
-      ctrl = clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
-    }
-    return ctrl;
+    return measured_pressure(m, d, i);
   }
   int adr = m->actuator_actadr[i] + m->actuator_actnum[i] - 1;
   double act = d->act[adr];
