@@ -227,25 +227,29 @@ static double muscle_tension(const Muscle* mu, double pressure, double length) {
 static double pick(int condition, double yes, double no) { return condition ? yes : no; }
 static int finite_number(double x) { return x - x == 0.0; }  // false for inf and NaN
 
-// out[i] = exp(x[i]) to about one rounding, in three branch-free passes over arrays (so that
-// each vectorises): x = n ln2 + r (Cody-Waite split of ln2) and exp(r) by its Taylor series to
-// degree 13 (|r| <= ln2/2: truncation below 1e-17); then 2^n by writing n + 1023 into the
-// exponent bits (integer pass); then the product. Below -708 it returns 0 and above 709 inf
-// (where libm gives a subnormal or a finite 1e308: the force is not finite then, and the plugin
-// writes 0, as documented).
-static void exp_batch(int n, const double* restrict x, double* restrict out) {
+// max(x, 0) without a branch, exactly for finite x: x + |x| is 2x or 0, halving is exact. Loops
+// of arithmetic vectorise on every x86-64 clone, loops of selects (x > 0 ? x : 0) only on some.
+static double ramp(double x) { return 0.5 * (x + fabs(x)); }
+
+// out[i] = exp(x[i]) for i < n <= 2 BATCH, to about one rounding, in vectorising passes:
+// x = n ln2 + r (Cody-Waite split of ln2), exp(r) by its Taylor series to degree 13 (|r| <=
+// ln2/2: truncation below 1e-17); then 2^n by writing n + 1023 into the exponent bits (an
+// integer pass); then the product. Below -708 it returns 0 and above 709 inf (where libm gives
+// a subnormal or a finite 1e308: the force is not finite then, and the plugin writes 0).
+#if defined(__GNUC__)
+__attribute__((always_inline))  // inlined into each vector clone of tension_batch
+#endif
+static inline void exp_batch(int n, const double* restrict x, double* restrict out) {
   const double shifter = 0x1.8p52, log2e = 1.4426950408889634;
   const double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
-  double xc[BATCH], k[BATCH], poly[BATCH];
-  uint64_t bits[BATCH], shifter_bits;
-  memcpy(&shifter_bits, &shifter, sizeof shifter_bits);
-  for (int i = 0; i < n; i++) {  // (a pass of its own: GCC if-converts a select that is stored)
-    xc[i] = pick(x[i] > -708.0, pick(x[i] < 709.0, x[i], 709.0), -708.0);  // NaN -> -708, replaced below
-  }
+  double k[2 * BATCH];
+  const union { double d; uint64_t u; } shift = {shifter};
   for (int i = 0; i < n; i++) {
-    k[i] = xc[i] * log2e + shifter;  // n in the low bits of k: rounded to nearest
+    double xc = x[i] - ramp(x[i] - 709.0);  // exact inside [-708, 709]; outside replaced below
+    xc = xc + ramp(-708.0 - xc);
+    k[i] = xc * log2e + shifter;  // n in the low bits of k: rounded to nearest
     double whole = k[i] - shifter;
-    double r = (xc[i] - whole * ln2_hi) - whole * ln2_lo;
+    double r = (xc - whole * ln2_hi) - whole * ln2_lo;
     double p = 1.0 / 6227020800.0;
     p = p * r + 1.0 / 479001600.0;
     p = p * r + 1.0 / 39916800.0;
@@ -259,17 +263,14 @@ static void exp_batch(int n, const double* restrict x, double* restrict out) {
     p = p * r + 1.0 / 6.0;
     p = p * r + 0.5;
     p = p * r + 1.0;
-    poly[i] = p * r + 1.0;
-  }
-  memcpy(bits, k, sizeof(double) * (size_t)n);
-  for (int i = 0; i < n; i++) {
-    bits[i] = (bits[i] - shifter_bits + 1023u) << 52;  // 2^n, n in [-1022, 1023]
-  }
-  memcpy(k, bits, sizeof(double) * (size_t)n);
-  for (int i = 0; i < n; i++) {
-    out[i] = poly[i] * k[i];
+    out[i] = p * r + 1.0;
   }
   for (int i = 0; i < n; i++) {
+    union { double d; uint64_t u; } scale = {k[i]};
+    scale.u = (scale.u - shift.u + 1023u) << 52;  // 2^n, n in [-1022, 1023]
+    out[i] = out[i] * scale.d;
+  }
+  for (int i = 0; i < n; i++) {  // (selects in passes of their own: see ramp)
     out[i] = pick(x[i] < -708.0, 0.0, out[i]);
   }
   for (int i = 0; i < n; i++) {
@@ -290,9 +291,9 @@ EFAM_VECTOR_CLONES
 static void tension_batch(const Muscle* mu, int n, const double* restrict pressure,
                           const double* restrict length, double* restrict tension) {
   double ok[BATCH], P[BATCH], L[BATCH], L_unclamped[BATCH], r_out[BATCH], t[BATCH];
-  double eps_z[BATCH], eps_c[BATCH];
-  double sigma_z[BATCH], sigma_c[BATCH];
+  double eps[2 * BATCH], sigma[2 * BATCH];  // z strains in [0, n), c strains in [n, 2n)
   const double lo = mu->min_length, hi = mu->max_length, V = mu->bladder_volume, N = mu->turns;
+  const double* c = mu->coef;
 
   // inputs MuJoCo may hand over: non-finite (force 0), negative pressure, lengths out of range
   for (int i = 0; i < n; i++) {
@@ -305,97 +306,58 @@ static void tension_batch(const Muscle* mu, int n, const double* restrict pressu
     l = pick(l > lo, l, lo);
     L[i] = pick(l < hi, l, hi);
   }
-  // geometry, Eqs. 10-13 (each clamp in a pass of its own: GCC turns a select into vector code
-  // when the select is what the loop stores)
-  double squared[BATCH];
+  // geometry, Eqs. 10-13, and the law's linear part (E1 + E2 P) eps
   for (int i = 0; i < n; i++) {
-    squared[i] = mu->thread_sq_pow - L[i] * L[i];
-  }
-  for (int i = 0; i < n; i++) {
-    squared[i] = pick(squared[i] > 0.0, squared[i], 0.0);
-  }
-  for (int i = 0; i < n; i++) {
-    r_out[i] = sqrt(squared[i]) / mu->two_pi_turns;
-    squared[i] = r_out[i] * r_out[i] - V / (M_PI * L[i]);
-  }
-  for (int i = 0; i < n; i++) {
-    squared[i] = pick(squared[i] > 0.0, squared[i], 0.0);
-  }
-  for (int i = 0; i < n; i++) {
-    t[i] = r_out[i] - sqrt(squared[i]);
-    eps_z[i] = L[i] / mu->rest_length - 1.0;
-    eps_c[i] = (r_out[i] - t[i] / 2) / mu->rest_mid_radius - 1.0;
-  }
-  // the stress law at both strains
-  const double* c = mu->coef;
-  for (int i = 0; i < n; i++) {
+    r_out[i] = sqrt(ramp(mu->thread_sq_pow - L[i] * L[i])) / mu->two_pi_turns;
+    t[i] = r_out[i] - sqrt(ramp(r_out[i] * r_out[i] - V / (M_PI * L[i])));
+    eps[i] = L[i] / mu->rest_length - 1.0;
+    eps[n + i] = (r_out[i] - t[i] / 2) / mu->rest_mid_radius - 1.0;
     double stiffness = c[0] + c[1] * P[i];
-    sigma_z[i] = stiffness * eps_z[i];
-    sigma_c[i] = stiffness * eps_c[i];
+    sigma[i] = stiffness * eps[i];
+    sigma[n + i] = stiffness * eps[n + i];
   }
+  // the law's non-linear term at both strains
+  int m = 2 * n;
   switch (mu->law) {
     case LAW_POLYNOMIAL:
-      for (int i = 0; i < n; i++) {
-        double ez = eps_z[i], ec = eps_c[i];
-        sigma_z[i] += c[2] * (ez * ez) + c[3] * (ez * ez * ez);
-        sigma_c[i] += c[2] * (ec * ec) + c[3] * (ec * ec * ec);
+      for (int i = 0; i < m; i++) {
+        sigma[i] += c[2] * (eps[i] * eps[i]) + c[3] * (eps[i] * eps[i] * eps[i]);
       }
       break;
     case LAW_EXP_DECAY: {
-      // (gcc cannot see that the loop below fills the first n entries exp_batch reads)
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-      double x_z[BATCH], x_c[BATCH], exp_z[BATCH], exp_c[BATCH];
-      for (int i = 0; i < n; i++) {
-        x_z[i] = -c[3] * eps_z[i];
-        x_c[i] = -c[3] * eps_c[i];
+      double arg[2 * BATCH], e[2 * BATCH];
+      for (int i = 0; i < m; i++) {
+        arg[i] = -c[3] * eps[i];
       }
-      exp_batch(n, x_z, exp_z);
-      exp_batch(n, x_c, exp_c);
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
-      for (int i = 0; i < n; i++) {
-        sigma_z[i] += c[2] * (1.0 - exp_z[i]);
-        sigma_c[i] += c[2] * (1.0 - exp_c[i]);
+      exp_batch(m, arg, e);
+      for (int i = 0; i < m; i++) {
+        sigma[i] += c[2] * (1.0 - e[i]);
       }
       break;
     }
     case LAW_EXPONENT:  // libm pow: not vectorised
-      for (int i = 0; i < n; i++) {
-        sigma_z[i] += c[0] * (signed_power(eps_z[i], c[2]) + signed_power(eps_z[i], c[3]));
-        sigma_c[i] += c[0] * (signed_power(eps_c[i], c[2]) + signed_power(eps_c[i], c[3]));
+      for (int i = 0; i < m; i++) {
+        sigma[i] += c[0] * (signed_power(eps[i], c[2]) + signed_power(eps[i], c[3]));
       }
       break;
     case LAW_SIGMOID:
-      for (int i = 0; i < n; i++) {
-        sigma_z[i] += c[2] * tanh(c[3] * eps_z[i]);
-        sigma_c[i] += c[2] * tanh(c[3] * eps_c[i]);
+      for (int i = 0; i < m; i++) {
+        sigma[i] += c[2] * tanh(c[3] * eps[i]);
       }
       break;
     case LAW_ARCCOT:
-      for (int i = 0; i < n; i++) {
-        sigma_z[i] += mu->arccot_scale * atan(c[3] * eps_z[i]);
-        sigma_c[i] += mu->arccot_scale * atan(c[3] * eps_c[i]);
+      for (int i = 0; i < m; i++) {
+        sigma[i] += mu->arccot_scale * atan(c[3] * eps[i]);
       }
       break;
     default:
       break;
   }
-  // Eq. 2, the lock-out spring beyond the admissible range, tension-only, finite output
-  double gauge[BATCH];
-  for (int i = 0; i < n; i++) {
-    gauge[i] = P[i] - mu->deadband;
-  }
-  for (int i = 0; i < n; i++) {
-    gauge[i] = pick(gauge[i] > 0.0, gauge[i], 0.0);
-  }
+  // Eq. 2 and the lock-out spring beyond the admissible range
   for (int i = 0; i < n; i++) {
     double Li = L[i];
-    double force = gauge[i] / mu->pressure_denom * (3 * Li * Li - mu->thread_sq_mul) + sigma_z[i] * V / Li -
-                   sigma_c[i] * t[i] * Li * Li / (2 * M_PI * r_out[i] * N * N);
+    double force = ramp(P[i] - mu->deadband) / mu->pressure_denom * (3 * Li * Li - mu->thread_sq_mul) +
+                   sigma[i] * V / Li - sigma[n + i] * t[i] * Li * Li / (2 * M_PI * r_out[i] * N * N);
     tension[i] = force + mu->lock_stiffness * (L_unclamped[i] - Li);
   }
   if (mu->tension_only) {
