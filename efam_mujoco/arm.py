@@ -25,8 +25,10 @@ The MuJoCo model (:func:`build_spec`):
   and swage tubes on the plates, latex bladder and Kevlar sleeve spread over the disks.
 * passive damping on the joints, given per section (axial and bending) and spread over the links.
 * sensors: ``tip_pos``/``tip_quat`` (framepos/framequat of site ``tip``), ``len_s{j}m{i}``
-  (tendonpos), ``force_s{j}m{i}`` (actuatorfrc, push positive). MuJoCo 3.17 has no sensor that
-  reads an actuator's activation, so the pressures are read with :func:`muscle_pressures`.
+  (tendonpos), ``force_s{j}m{i}`` (actuatorfrc, push positive), and ``pressures_<instance>``:
+  the efam.muscle plugin's own sensor, the pressure state (activation, or ctrl without a lag) of
+  every actuator of that plugin instance in actuator order, read at the position stage (before
+  the step integrates it; :func:`muscle_pressures` reads the same after a step).
 """
 
 from __future__ import annotations
@@ -561,6 +563,11 @@ def _add_sensors(spec, arm):
                 name=f"force_s{j}m{i + 1}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                 objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=f"s{j}m{i + 1}",
             )  # fmt: skip
+    # the plugin's pressure sensor: per instance, the pressure state of each of its actuators
+    for instance in spec.plugins:
+        if instance.plugin_name == plugin.PLUGIN_NAME:
+            sensor = spec.add_sensor(name=f"pressures_{instance.name}", type=mujoco.mjtSensor.mjSENS_PLUGIN)
+            sensor.plugin = instance
 
 
 def build_model(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjModel:

@@ -40,6 +40,7 @@
 #define BRENT_XTOL 1e-15     // the tolerances muscle._admissible_lengths gives brentq
 #define BRENT_RTOL 1e-15
 #define BRENT_MAXITER 100
+#define MAX_PRESSURE_SENSORS 8  // pressure sensors one instance may feed
 
 // ------------------------------------------------------------------------------ stress laws
 
@@ -171,6 +172,10 @@ typedef struct {
   EffectsConfig effects;  // efam_effects.h: the effect terms switched on (count 0: none)
 
   // the actuators this instance drives
+  // pressure sensors (<sensor><plugin instance=.../>): where each writes its nactuator values
+  int nsensor;
+  int sensor_adr[MAX_PRESSURE_SENSORS];
+
   int nactuator;
   int actuator[];
 } Muscle;
@@ -710,6 +715,14 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
   check_stable(m, instance, &mu);
   effects_configure(m, instance, &mu.effects, EFFECTS_MUSCLE_OF(mu));  // efam_effects.h
 
+  int nsensor = 0;
+  for (int j = 0; j < m->nsensor; j++) {
+    nsensor += m->sensor_type[j] == mjSENS_PLUGIN && m->sensor_plugin[j] == instance;
+  }
+  if (nsensor > MAX_PRESSURE_SENSORS) {
+    CONFIG_ERROR(m, instance, "%d pressure sensors read this instance; at most %d may", nsensor,
+                 MAX_PRESSURE_SENSORS);
+  }
   Muscle* out = (Muscle*)malloc(sizeof(Muscle) + sizeof(int) * (size_t)nact);
   if (!out) {
     return NULL;
@@ -719,6 +732,12 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
   for (int i = 0; i < m->nactuator; i++) {
     if (m->actuator_plugin[i] == instance) {
       out->actuator[out->nactuator++] = i;
+    }
+  }
+  out->nsensor = 0;
+  for (int j = 0; j < m->nsensor; j++) {
+    if (m->sensor_type[j] == mjSENS_PLUGIN && m->sensor_plugin[j] == instance) {
+      out->sensor_adr[out->nsensor++] = m->sensor_adr[j];
     }
   }
   return out;
@@ -750,9 +769,38 @@ static double actuator_pressure(const mjModel* m, const mjData* d, int i) {
   return act;
 }
 
+// The pressure state of actuator i, what a pressure sensor reads: the activation (the lagged
+// pressure) of an actuator with dynamics, else the clamped control. (With actearly the force
+// uses the activation at the end of the step; the sensor reports the state.)
+static double pressure_state(const mjModel* m, const mjData* d, int i) {
+  if (m->actuator_dyntype[i] == mjDYN_NONE) {
+    return measured_pressure(m, d, i);
+  }
+  return d->act[m->actuator_actadr[i] + m->actuator_actnum[i] - 1];
+}
+
+// Sensor stage (mjSTAGE_POS: ctrl and act are state, and nothing else has to be computed first):
+// every pressure sensor of this instance gets one value per actuator, in actuator order.
+static void write_pressure_sensors(const mjModel* m, mjData* d, const Muscle* mu) {
+  for (int s = 0; s < mu->nsensor; s++) {
+    mjtNum* out = d->sensordata + mu->sensor_adr[s];
+    for (int k = 0; k < mu->nactuator; k++) {
+      out[k] = pressure_state(m, d, mu->actuator[k]);
+    }
+  }
+}
+
+static int muscle_nsensordata(const mjModel* m, int instance, int sensor_id) {
+  return actuator_count(m, instance);
+}
+
 static void muscle_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
   const Muscle* mu = (const Muscle*)d->plugin_data[instance];
   if (!mu) {
+    return;
+  }
+  if (capability_bit == mjPLUGIN_SENSOR) {
+    write_pressure_sensors(m, d, mu);
     return;
   }
   if (mu->nactuator < MIN_BATCH) {
@@ -843,7 +891,9 @@ EFAM_EXPORT int efam_muscle_register(void) {
   mjpPlugin plugin;
   mjp_defaultPlugin(&plugin);
   plugin.name = PLUGIN_NAME;
-  plugin.capabilityflags |= mjPLUGIN_ACTUATOR;
+  plugin.capabilityflags |= mjPLUGIN_ACTUATOR | mjPLUGIN_SENSOR;  // sensor: the pressures
+  plugin.needstage = mjSTAGE_POS;
+  plugin.nsensordata = muscle_nsensordata;
   // efam_effects.h: the muscle's keys, then `effects` and the effect parameter keys
   plugin.attributes = effects_all_attributes(kAttributes, NATTRIBUTE, &plugin.nattribute);
   plugin.nstate = muscle_nstate;
