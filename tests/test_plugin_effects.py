@@ -17,6 +17,7 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 import pytest
+from test_diagnose_effects import VALUES  # mid-range parameters of every effect
 
 from efam_mujoco import load_muscle, rig
 from efam_mujoco.diagnose import diagnose, synth
@@ -29,16 +30,6 @@ from efam_mujoco.recordings import Recording
 FORCE_EFFECTS = tuple(n for n in E.EFFECT_NAMES if n != "force_offset")
 
 # mid-range values: each term moves the force by newtons on these recordings
-VALUES = {
-    "friction": dict(f0_N=2.0, f1_N_per_MPa=8.0, g0_N=1.0, g1_N_per_MPa=3.0, slip_strain=0.004, slip_kPa=8.0),
-    "viscoelasticity": dict(k0_N=40.0, k1_N_per_MPa=60.0, tau_s=3.0),
-    "end_effects": dict(kappa0=0.05, kappa1=0.1, P_e_kPa=80.0),
-    "braid_compliance": dict(b1_per_MPa=0.02, b2_per_MPa2=-0.01),
-    "softening": dict(a=0.1, width=0.03),
-    "drift": dict(d0_N_per_s=0.002, d1_N_per_s=-0.01, d2_N_per_s_MPa=0.01, tau_s=300.0),
-    "pressure_lag": dict(tau_s=0.2),
-    "force_offset": dict(offset_N=1.5),
-}
 SHORT = synth.Protocol(
     pressures_kPa=(103.4, 310.3), cycles=("slow",), repeat_first=False, settle_s=3.0, start_s=2.0, hold_s=2.0
 )
