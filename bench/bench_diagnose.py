@@ -83,12 +83,7 @@ def run_case(case: tuple[str, int]) -> dict:
         "force_noise_N": truth.noise_N,
         "named": named,
         "all_named": d.names,
-        "refit_law": d.refit.law,
-        "noise_N": d.noise_N,
-        "rms_before_N": d.rms_before_N,
-        "rms_after_N": d.rms_after_N,
-        "heldout_rms_before_N": d.heldout_rms_before_N,
-        "heldout_rms_after_N": d.heldout_rms_after_N,
+        **d.rms_summary(),
         "first_heldout_after_N": d.effects[0]["heldout_rms_after_N"] if d.effects else d.heldout_rms_before_N,
         "candidates": [
             {k: c[k] for k in ("name", "heldout_rms_N", "delta_bic", "heldout_gain", "excess_cut")}

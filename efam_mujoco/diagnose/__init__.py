@@ -77,6 +77,17 @@ class Diagnosis:
         """The re-fitted muscle with the identified effects switched on."""
         return EffectModel(self.muscle_after, [(e["name"], e["parameters"]) for e in self.effects])
 
+    def rms_summary(self) -> dict[str, float]:
+        """The refit law, the noise floor and the RMS before and after, in sample and held out."""
+        return {
+            "refit_law": self.refit.law,
+            "noise_N": self.noise_N,
+            "rms_before_N": self.rms_before_N,
+            "rms_after_N": self.rms_after_N,
+            "heldout_rms_before_N": self.heldout_rms_before_N,
+            "heldout_rms_after_N": self.heldout_rms_after_N,
+        }
+
     def to_json(self) -> dict:
         return {
             "effects": [{k: e[k] for k in _EFFECT_KEYS} for e in self.effects],
