@@ -344,7 +344,7 @@ class Friction(Effect):
                 Param("slip_kPa", 0.5, 100.0, True, (2.0, 6.0, 15.0, 40.0), "pre-sliding pressure change"),
             ),
             state=("z_x", "z_P"),
-            plugin="two play states; needs the previous L and P",
+            plugin="efam.muscle keys friction.*; 2 play states (and the shared previous L and P)",
             signature="a force step with the direction of motion that persists through holds",
         )
 
@@ -388,7 +388,7 @@ class Viscoelasticity(Effect):
                 Param("tau_s", 0.1, 500.0, True, (0.5, 1.5, 4.0, 10.0, 25.0, 60.0, 150.0), "relaxation time"),
             ),
             state=("w",),
-            plugin="one lag state on the strain",
+            plugin="efam.muscle keys viscoelasticity.*; 1 lag state on the strain",
             signature="hysteresis that grows with the rate and relaxes during holds",
         )
 
@@ -417,7 +417,7 @@ class EndEffects(Effect):
                 Param("kappa1", -0.5, 0.5, meaning="its excess at low pressure"),
                 Param("P_e_kPa", 10.0, 1000.0, True, (30.0, 80.0, 200.0, 500.0), "pressure scale"),
             ),
-            plugin="stateless; evaluates the model at L +- h",
+            plugin="efam.muscle keys end_effects.*; stateless, evaluates the model at L +- h",
             signature="a static error growing with the stroke, changing with pressure",
         )
 
@@ -448,7 +448,7 @@ class BraidCompliance(Effect):
                 Param("b1_per_MPa", 0.0, 0.2, meaning="thread strain per MPa of hoop load"),
                 Param("b2_per_MPa2", -0.2, 0.2, meaning="its curvature (crimp, stiffening)"),
             ),
-            plugin="stateless; evaluates Eq. 2 with the thread length scaled by 1 +- h",
+            plugin="efam.muscle keys braid_compliance.*; stateless, Eq. 2 with the thread length scaled by 1 +- h",
             signature="a static error growing with pressure, shaped like a braid-angle change",
         )
 
@@ -482,7 +482,7 @@ class Softening(Effect):
                 Param("width", 1e-3, 0.5, True, (0.005, 0.015, 0.04, 0.1, 0.25), "how fast it fades"),
             ),
             state=("m",),
-            plugin="one running-maximum state; needs the bladder part of Eq. 2",
+            plugin="efam.muscle keys softening.*; 1 running-maximum state on the bladder part of Eq. 2",
             signature="the first cycle at each new pressure or strain carries extra force",
         )
 
@@ -511,7 +511,7 @@ class Drift(Effect):
                 Param("d2_N_per_s_MPa", -10.0, 10.0, meaning="its growth with pressure"),
                 Param("tau_s", 30.0, 1e6, True, (100.0, 300.0, 1000.0, 3000.0, 1e5), "time constant"),
             ),
-            plugin="stateless; uses the time since the start",
+            plugin="efam.muscle keys drift.*; stateless, uses the time since the first step",
             signature="a residual that changes steadily with time, across pressures and cycles",
         )
 
@@ -542,7 +542,7 @@ class PressureLag(Effect):
                 ),
             ),
             state=("P_i", "V_prev"),
-            plugin="MuJoCo filterexact (dynprm = tau) plus the volume term; one state",
+            plugin="efam.muscle key pressure_lag.tau_s on an actuator with dyntype filterexact, dynprm = tau_s, actearly; 2 states for the gas-volume term",
             signature="force lagging pressure changes, and an error while the volume changes",
         )
 
