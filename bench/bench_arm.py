@@ -12,7 +12,6 @@ interleaved repeats, medians; single thread. Writes ``bench/results/arm.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import statistics
 import sys
@@ -23,6 +22,7 @@ import mujoco
 import numpy as np
 
 from efam_mujoco import arm
+from efam_mujoco.files import write_json_atomic
 
 RESULTS = Path(__file__).resolve().parent / "results" / "arm.json"
 
@@ -97,10 +97,7 @@ def main(argv=None) -> int:
         "python": platform.python_version(),
         "machine": platform.machine(),
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_name(args.out.name + ".tmp")
-    tmp.write_text(json.dumps(result, indent=1) + "\n")
-    tmp.replace(args.out)
+    write_json_atomic(args.out, result)
     print(
         f"3x3 arm ({model.nv} dof, {model.nu} muscles): plugin {median['plugin']:.0f} steps/s, "
         f"affine {median['affine']:.0f} steps/s, ratio {ratio:.3f} (goal >= 0.95)"

@@ -25,7 +25,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -33,6 +32,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from efam_mujoco.calibrate import calibrate, fit_law, paper_baseline, recovery_error, synthesize  # noqa: E402
+from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
 from efam_mujoco.stress import LAW_NAMES  # noqa: E402
 
@@ -140,11 +140,7 @@ def main(argv=None) -> int:
     }
     print(f"\n6-law calibration (with held-out) on one core: worst {worst_time:.2f} s (goal < {SPEED_GOAL_S} s); "
           f"worst recovery {worst_recovery:.3f} % (goal < 0.5 %); Eq. 14 <= Nelder-Mead everywhere: {all_le}")  # fmt: skip
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps({"summary": summary, "cases": cases}, indent=1) + "\n")
-    tmp.replace(out)
+    out = write_json_atomic(args.out, {"summary": summary, "cases": cases})
     print(f"wrote {out}")
     if args.figures:
         from efam_mujoco.calibrate.report import write_figures

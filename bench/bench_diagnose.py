@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 from efam_mujoco.diagnose import diagnose  # noqa: E402
 from efam_mujoco.diagnose.effects import EFFECT_NAMES  # noqa: E402
 from efam_mujoco.diagnose.synth import TRUTH_EFFECTS, synthesize  # noqa: E402
+from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "diagnose.json"
@@ -267,11 +268,7 @@ def main(argv=None) -> int:
         "wall_s": time.perf_counter() - start,
         "cases": rows,
     }
-    path = Path(args.out)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(out, indent=1) + "\n")
-    os.replace(tmp, path)
+    path = write_json_atomic(args.out, out)
     print(f"\nwrote {path} ({out['wall_s']:.0f} s)")
     if path == RESULTS:
         for fig in write_figures(summary):

@@ -31,11 +31,9 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
-import json
 import math
 import platform
 import statistics
-import tempfile
 import time
 from pathlib import Path
 
@@ -45,6 +43,7 @@ from mujoco import rollout
 
 import efam_mujoco  # noqa: F401  (registers efam.muscle)
 from efam_mujoco import Muscle, load_muscle
+from efam_mujoco.files import write_json_atomic
 from efam_mujoco.plugin import instance_xml, plugin_config
 
 RESULTS = Path(__file__).resolve().parent / "results" / "plugin.json"
@@ -207,15 +206,6 @@ def threaded(models: dict, nbatch: int, nstep: int, repeats: int) -> dict[str, d
     }
 
 
-def write_json_atomically(path: Path, doc: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
-    os.replace(tmp, path)
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--links", type=int, default=12, help="muscles in the chain (default 12)")
@@ -294,7 +284,7 @@ def main(argv=None) -> int:
         "goals": goals,
         "goals_met": {key: ratios[key] >= goal for key, goal in goals.items()},
     }
-    write_json_atomically(args.out, doc)
+    write_json_atomic(args.out, doc)
 
     print("plugin_shared: one plugin instance for the identical muscles (as the efam builders write it)")
     print("plugin:        one plugin instance per actuator (inline <config> on each actuator)")

@@ -44,6 +44,7 @@ from scipy.optimize import minimize_scalar
 
 from efam_mujoco.calibrate import blocked_points, fit_blocked, fit_law, pool
 from efam_mujoco.calibrate.blocked import braid_angle_from_slope
+from efam_mujoco.files import write_json_atomic
 from efam_mujoco.muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle, MuscleError
 from efam_mujoco.recordings import read_csv
 from efam_mujoco.stress import LAW_NAMES, StressLaw, StressLawError
@@ -274,11 +275,7 @@ def main(argv=None) -> int:
         "muscles": results,
         "seconds": time.perf_counter() - t0,
     }
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    tmp.replace(out)
+    out = write_json_atomic(args.out, doc)
     Path(args.figure).parent.mkdir(parents=True, exist_ok=True)
     figure(groups, results, args.figure)
     print("\nper muscle type (mean over its muscles), % of the muscle's largest measured force:")

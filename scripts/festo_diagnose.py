@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -36,6 +35,7 @@ import numpy as np
 from efam_mujoco.calibrate import blocked_points, fit_blocked, pool
 from efam_mujoco.diagnose import diagnose
 from efam_mujoco.diagnose.report import figures, text
+from efam_mujoco.files import write_json_atomic
 from efam_mujoco.muscle import Muscle
 from efam_mujoco.recordings import Recording, drop_report, read_csv
 from efam_mujoco.stress import StressLaw
@@ -146,12 +146,7 @@ def main(argv=None) -> int:
     found = sum(r["hysteresis_found"] for r in rows)
     print(f"\nhysteresis found and modelled in {found} of {len(rows)} muscles")
     if not args.only:
-        RESULTS.parent.mkdir(parents=True, exist_ok=True)
-        tmp = RESULTS.with_name(RESULTS.name + ".tmp")
-        tmp.write_text(
-            json.dumps({"muscles": rows, "hysteresis_found": found, "of": len(rows)}, indent=1) + "\n"
-        )
-        os.replace(tmp, RESULTS)
+        write_json_atomic(RESULTS, {"muscles": rows, "hysteresis_found": found, "of": len(rows)})
         print(f"wrote {RESULTS}")
     return 0
 
