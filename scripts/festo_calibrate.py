@@ -1,6 +1,6 @@
 """Calibrate the force-balance model on real Festo DMSP recordings (contractile McKibben muscles).
 
-Data: /work/shared/data/real/festo_dmsp (see its README; not part of the package, not shipped).
+Data: ../shared/data/real/festo_dmsp beside the checkout, or $EFAM_SHARED_DIR (see its README; not part of the package, not shipped).
 Skips cleanly (exit 0, one line) when that folder is absent.
 
 Each file holds one muscle at one fixed length while the pressure ramps up to ~620 kPa and back
@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -49,7 +48,10 @@ from efam_mujoco.muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle, MuscleError
 from efam_mujoco.recordings import read_csv
 from efam_mujoco.stress import LAW_NAMES, StressLaw, StressLawError
 
-DATA = Path(os.environ.get("EFAM_FESTO_DATA", "/work/shared/data/real/festo_dmsp"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from shared_data import festo_dir  # noqa: E402
+
+DATA = festo_dir()
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results" / "festo_calibrate.json"
 FIGURE = ROOT / "docs" / "figures" / "calibration_festo.png"

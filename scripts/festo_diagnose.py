@@ -1,6 +1,6 @@
 """Diagnose real Festo DMSP recordings: what the force-balance model leaves out, on real hardware.
 
-Data: /work/shared/data/real/festo_dmsp (see its README; not part of the package, not shipped).
+Data: ../shared/data/real/festo_dmsp beside the checkout, or $EFAM_SHARED_DIR (see its README; not part of the package, not shipped).
 Skips cleanly (exit 0, one line) when that folder is absent.
 
 Each file holds one contractile McKibben muscle at one fixed length while the pressure steps up to
@@ -40,7 +40,10 @@ from efam_mujoco.muscle import Muscle
 from efam_mujoco.recordings import Recording, drop_report, read_csv
 from efam_mujoco.stress import StressLaw
 
-DATA = Path("/work/shared/data/real/festo_dmsp")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from shared_data import festo_dir  # noqa: E402
+
+DATA = festo_dir()
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results" / "diagnose_festo.json"
 FIGURES = ROOT / "docs" / "figures"

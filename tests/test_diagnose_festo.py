@@ -1,4 +1,4 @@
-"""``diagnose`` on real Festo DMSP recordings (skips when /work/shared is absent)."""
+"""``diagnose`` on real Festo DMSP recordings (skips when ../shared, or $EFAM_SHARED_DIR, is absent)."""
 
 import json
 import sys
@@ -7,7 +7,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = Path("/work/shared/data/real/festo_dmsp")
+sys.path.insert(0, str(ROOT / "scripts"))
+from shared_data import festo_dir  # noqa: E402
+
+sys.path.pop(0)
+DATA = festo_dir()
 
 pytestmark = pytest.mark.skipif(not (DATA / "recordings.json").exists(), reason="real Festo data absent")
 
