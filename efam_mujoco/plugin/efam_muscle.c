@@ -17,6 +17,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,6 +36,54 @@
 #endif
 
 #define PLUGIN_NAME "efam.muscle"
+
+// ----------------------------------------------------------------- errors during init
+// mj_initPlugin frees the mjData it is making when init returns -1, but an mju_error raised
+// inside init never returns there (MuJoCo's error handlers longjmp, throw or exit), so that
+// mjData (buffer, arena, struct: ~20 KB touched per rejected model) and the instances already
+// initialised would leak on every rejected config. Every error in this file goes through
+// efam_fail: while an init runs on this thread, it first frees what mj_makeData/mj_copyData
+// allocated for the unborn mjData (nobody else can reach it), as mj_initPlugin's own failure
+// path does, then raises the error with its full message (the config key named).
+#if defined(_MSC_VER)
+#define EFAM_THREAD_LOCAL __declspec(thread)
+#else
+#define EFAM_THREAD_LOCAL _Thread_local
+#endif
+
+static EFAM_THREAD_LOCAL mjData* init_data;  // the mjData an init on this thread is filling
+static EFAM_THREAD_LOCAL int init_instance;
+
+static void release_unborn_data(mjData* d, int instance) {
+  for (int j = 0; j < instance; j++) {  // instances initialised before this one
+    const mjpPlugin* plugin = mjp_getPluginAtSlot(d->plugin[j]);
+    if (plugin && plugin->destroy && d->plugin_data[j]) {
+      plugin->destroy(d, j);
+    }
+  }
+  mju_free(d->buffer);
+  mju_free(d->arena);
+  mju_free(d);
+}
+
+static void efam_fail(const char* fmt, ...) {
+  char message[1024];
+  va_list args;
+  va_start(args, fmt);
+  vsnprintf(message, sizeof(message), fmt, args);
+  va_end(args);
+  mjData* d = init_data;
+  init_data = NULL;
+  if (d) {
+    release_unborn_data(d, init_instance);
+  }
+  (mju_error)("%s", message);
+  if (d) {  // a handler that returns breaks MuJoCo's contract; d is gone, so stop here
+    fprintf(stderr, "%s\n", message);
+    abort();
+  }
+}
+#define mju_error(...) efam_fail(__VA_ARGS__)
 #define DEFAULT_LOCK_STIFFNESS 2.0e4
 #define STRAIN_SAMPLES 2001  // Muscle.strain_range samples the admissible lengths this densely
 #define BRENT_XTOL 1e-15     // the tolerances muscle._admissible_lengths gives brentq
@@ -833,7 +882,10 @@ static void muscle_compute(const mjModel* m, mjData* d, int instance, int capabi
 }
 
 static int muscle_init(const mjModel* m, mjData* d, int instance) {
+  init_data = d;  // a config error frees it (efam_fail): mj_initPlugin cannot, the error skips it
+  init_instance = instance;
   Muscle* mu = muscle_create(m, instance);
+  init_data = NULL;
   if (!mu) {
     mju_warning(PLUGIN_NAME ": out of memory");
     return -1;
