@@ -1,10 +1,27 @@
-"""The ``efam`` command line. Each feature module adds its own subcommand."""
+"""The ``efam`` command line. Each feature module adds its own subcommand.
+
+What every subcommand gets from here, without code of its own:
+
+* exact flag matching: ``allow_abbrev=False`` on the parser and on every subparser (the
+  ``subparsers`` object handed to ``register_cli`` adds it), so ``--pressures 75`` is an error,
+  never a silent ``--pressures-kPa 75``;
+* every flag's default shown in its help;
+* ``efam --version``;
+* the output policy (:mod:`efam_mujoco.files`) checked before anything runs: an output path that
+  is an input (or inside the installed package) is refused, naming both flags;
+* MuJoCo's log routed to ``--mujoco-log FILE`` or standard error, never ``MUJOCO_LOG.TXT``;
+* one error exit: bad input prints ``efam COMMAND: error: ...`` and exits 2, with no traceback;
+  a closed pipe (``efam muscle FAM1 | head``) ends quietly.
+"""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import warnings
+from pathlib import Path
 
 # Modules exposing ``register_cli(subparsers)``; each adds one subcommand.
 COMMAND_MODULES = (
@@ -15,26 +32,162 @@ COMMAND_MODULES = (
     "efam_mujoco.diagnose",
 )
 
+#: Input and output arguments of commands whose module does not declare them itself
+#: (``parser.set_defaults(file_inputs=(...), file_outputs=(...))`` declares them in a module).
+DEFAULT_FILE_ARGS = {
+    "arm": {"inputs": ("muscle",), "outputs": ("xml", "json", "models_dir")},
+}
+
+#: Exit status of a bad input (argparse uses 2 too) and of an interrupted run.
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Adds ``(default: X)`` to a flag's help when it has a default and does not say it."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if (
+            default not in (None, False, argparse.SUPPRESS)
+            and "default" not in text.lower()
+            and action.option_strings
+            and action.nargs != 0
+        ):
+            shown = " ".join(map(str, default)) if isinstance(default, (list, tuple)) else default
+            text = f"{text} (default: {shown})" if text else f"(default: {shown})"
+        return text
+
+
+class _ExactSubparsers:
+    """Wraps argparse's subparsers action: every subparser gets ``allow_abbrev=False`` and the
+    help formatter above, so no feature module has to remember them."""
+
+    def __init__(self, action):
+        self._action = action
+
+    def add_parser(self, name, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        kwargs["allow_abbrev"] = False
+        return self._action.add_parser(name, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._action, name)
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("efam_mujoco")
+    except Exception:  # not installed (a bare checkout on sys.path)
+        return "unknown"
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="efam",
         description="Extensile fluidic artificial muscles in MuJoCo (Garbulinski et al. 2021 model).",
+        allow_abbrev=False,
+        formatter_class=_HelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"efam_mujoco {_version()}")
+    parser.add_argument(
+        "--mujoco-log",
+        metavar="FILE",
+        help="append MuJoCo's warnings to FILE (default: print them on standard error; "
+        "MUJOCO_LOG.TXT is never written)",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    exact = _ExactSubparsers(sub)
     for name in COMMAND_MODULES:
-        importlib.import_module(name).register_cli(sub)
+        importlib.import_module(name).register_cli(exact)
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+def _file_args(args) -> tuple[dict, dict]:
+    """The command's input and output paths, keyed by the flag a user typed."""
+    declared = DEFAULT_FILE_ARGS.get(args.command, {})
+    names_in = getattr(args, "file_inputs", None) or declared.get("inputs", ())
+    names_out = getattr(args, "file_outputs", None) or declared.get("outputs", ())
+
+    def flag(name):
+        return name.upper() if name in ("files", "file") else "--" + name.replace("_", "-")
+
+    def existing(value):  # a preset name (FAM1) is not a file
+        values = value if isinstance(value, (list, tuple)) else [value]
+        return [v for v in values if v is not None and Path(str(v)).exists()]
+
+    inputs = {flag(n): existing(getattr(args, n, None)) for n in names_in}
+    outputs = {flag(n): getattr(args, n, None) for n in names_out}
+    if args.command == "arm" and not getattr(args, "write_models", False):
+        outputs.pop("--models-dir", None)
+    if getattr(args, "mujoco_log", None):
+        outputs["--mujoco-log"] = args.mujoco_log
+    return inputs, outputs
+
+
+def _quiet_broken_pipe() -> None:
+    """After a closed pipe: send what is left for stdout to /dev/null so that the flush at exit
+    does not raise again (the recipe in Python's signal documentation)."""
     try:
-        return int(args.run(args) or 0)
-    except (ValueError, OSError) as err:  # bad input: one clear line, no traceback
-        print(f"efam {args.command}: error: {err}", file=sys.stderr)
-        return 2
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one ``efam`` command; returns the exit status (0 ok, 2 bad input)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as done:  # --help, --version, or a usage error argparse has printed
+        return int(done.code or 0) if not isinstance(done.code, str) else EXIT_BAD_INPUT
+    from .files import check_outputs, route_mujoco_log
+
+    command = f"efam {args.command}"
+    try:
+        inputs, outputs = _file_args(args)
+        check_outputs(outputs, inputs)
+        route_mujoco_log(args.mujoco_log)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _show_warning
+            status = int(args.run(args) or 0)
+        sys.stdout.flush()
+        return status
+    except BrokenPipeError:
+        _quiet_broken_pipe()
+        return 0
+    except KeyboardInterrupt:
+        print(f"{command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (ValueError, OSError, ArithmeticError, RuntimeError) as err:  # bad input: one clear line
+        print(f"{command}: error: {_message(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Exception as err:  # a bug: still one line for the user; the traceback on request
+        if os.environ.get("EFAM_DEBUG"):
+            raise
+        print(
+            f"{command}: internal error: {type(err).__name__}: {err} (set EFAM_DEBUG=1 for the traceback; "
+            "please report it)",
+            file=sys.stderr,
+        )
+        return 3
+
+
+def _message(err: BaseException) -> str:
+    if isinstance(err, OSError) and err.filename and err.strerror:
+        return f"{err.filename}: {err.strerror}"
+    text = " ".join(str(err).split())
+    return text or type(err).__name__
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"warning: {message}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -32,12 +32,14 @@ documented (the plugin does the same, so nothing non-finite ever reaches MuJoCo)
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import brentq
 
 from .stress import StressLaw
+from .units import check_pressure_Pa
 
 #: Braid angle at which the blocked force changes sign (paper Sec. 1, Eq. 1): atan(1/sqrt(2)).
 NEUTRAL_BRAID_ANGLE_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
@@ -273,8 +275,30 @@ class Muscle:
         """MuJoCo sign: positive = pushes the ends apart (the negative of Eq. 2)."""
         return -self.tension(pressure_Pa, length_m)
 
+    def blocked_tension(self, pressure_Pa):
+        """Eq. 9 (Gaylord with dead band): the force at the resting length, paper sign
+        (positive = pulls; an EFAM's is negative). Pressures in Pa (a warning below 1000 Pa)."""
+        check_pressure_Pa(pressure_Pa, "Muscle.blocked_tension")
+        return self._blocked_tension(pressure_Pa)
+
+    def blocked_push(self, pressure_Pa):
+        """Eq. 9 in the MuJoCo sign: the force at the resting length, positive = pushes (what
+        ``rig.blocked_push`` measures). Pressures in Pa (a warning below 1000 Pa)."""
+        check_pressure_Pa(pressure_Pa, "Muscle.blocked_push")
+        return -self._blocked_tension(pressure_Pa)
+
     def blocked_force(self, pressure_Pa):
-        """Eq. 9 (Gaylord with dead band): tension at the resting length, paper sign."""
+        """Deprecated: the paper-sign blocked force (= :meth:`blocked_tension`). Its name hid its
+        sign (``rig.blocked_force`` was push positive); use ``blocked_tension`` or ``blocked_push``."""
+        warnings.warn(
+            "Muscle.blocked_force is the paper sign (positive = pulls); use Muscle.blocked_tension "
+            "(same value) or Muscle.blocked_push (MuJoCo sign)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self._blocked_tension(pressure_Pa)
+
+    def _blocked_tension(self, pressure_Pa):
         P = np.maximum(np.asarray(pressure_Pa, dtype=float), 0.0)
         theta = math.radians(self.theta_rest_deg)
         gauge = np.maximum(P - self.deadband_Pa, 0.0)
@@ -284,7 +308,9 @@ class Muscle:
 
     def free_length(self, pressure_Pa):
         """Length at which the muscle carries no force (Eq. 2 = 0), searched from rest length in
-        the direction the pressure moves it. Vectorised over pressures (a loop of root finds)."""
+        the direction the pressure moves it. Vectorised over pressures (a loop of root finds).
+        Pressures in Pa (a warning below 1000 Pa)."""
+        check_pressure_Pa(pressure_Pa, "Muscle.free_length")
         P = np.asarray(pressure_Pa, dtype=float)
         out = np.array([self._free_length_one(float(p)) for p in P.ravel()]).reshape(P.shape)
         return out if out.ndim else float(out)

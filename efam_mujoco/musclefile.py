@@ -24,10 +24,12 @@ import json
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from .files import write_json_atomic
 from .muscle import DEFAULT_LOCK_STIFFNESS, Geometry, Muscle, MuscleError
-from .stress import StressLaw, StressLawError
-from .units import UnitError, read_quantity
+from .stress import LAW_NAMES, StressLaw, StressLawError
+from .units import REQUIRED, UnitError, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.muscle/1"
 PRESETS = ("fam1", "fam2")
@@ -43,15 +45,76 @@ class MuscleFileError(ValueError):
     """A muscle file that cannot be read; the message names the file and the key."""
 
 
+#: A muscle file is a few kB; anything above this is not one (and is not read into memory).
+MAX_FILE_BYTES = 4_000_000
+
+#: Every key a muscle file may hold at the top level (``deadband`` with any pressure unit).
+TOP_LEVEL_KEYS = (
+    "format", "name", "description", "geometry", "constants", "deadband_<unit>", "tension_only",
+    "lock_stiffness_N_per_m", "stress", "published", "notes", "calibration",
+)  # fmt: skip
+_FREE_FORM = ("published", "calibration")  # informational blocks, not read by the model
+_CONSTANTS = (("rest_length", "length"), ("rest_diameter", "length"), ("theta_rest", "angle"),
+              ("bladder_volume", "volume"))  # fmt: skip
+#: Plausible ranges (SI) of what a muscle file gives; outside them a value cannot be physical
+#: for a fluidic muscle and is most likely in another unit than its key says.
+PLAUSIBLE = {
+    "length": (1e-4, 10.0),  # 0.1 mm .. 10 m
+    "volume": (1e-12, 1.0),
+    "pressure": (0.0, 10e6),  # a dead band up to 10 MPa
+    "angle": (0.0, 3.141592653589793 / 2),
+}
+#: Pressures at which a muscle file's model must give a finite force at every admissible length.
+CHECK_PRESSURES_PA = (0.0, 50e3, 200e3, 500e3, 1e6)
+
+
 def preset_names() -> tuple[str, ...]:
+    """The presets shipped with the package (``fam1``, ``fam2``), usable wherever a file is."""
     return PRESETS
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"'{name}' is not a JSON number (use a finite number)")
+
+
+def _no_duplicates(pairs):
+    seen = {}
+    for key, value in pairs:
+        if key in seen:
+            raise ValueError(f"key '{key}' appears twice in one object")
+        seen[key] = value
+    return seen
+
+
+def parse_json_text(data: bytes, label: str) -> object:
+    """Strict JSON from bytes: UTF-8 (a BOM is allowed), no NaN/Infinity, no duplicate keys;
+    errors name ``label``, the line and the column."""
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        column = err.start - (data.rfind(b"\n", 0, err.start) + 1) + 1
+        raise MuscleFileError(
+            f"{label}: line {line}, column {column}: byte 0x{data[err.start]:02x} is not UTF-8 "
+            "(save the file as UTF-8)"
+        ) from None
+    try:
+        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates)
+    except json.JSONDecodeError as err:
+        raise MuscleFileError(
+            f"{label}: line {err.lineno}, column {err.colno}: not valid JSON ({err.msg})"
+        ) from None
+    except ValueError as err:
+        raise MuscleFileError(f"{label}: not valid JSON: {err}") from None
+    except RecursionError:
+        raise MuscleFileError(f"{label}: not valid JSON: nested too deeply") from None
 
 
 def read_document(source: str | Path) -> tuple[dict, str]:
     """The parsed JSON of a preset name or a file path, and a label for messages."""
     key = str(source).lower()
     if key in PRESETS:
-        text = resources.files("efam_mujoco.presets").joinpath(f"{key}.json").read_text()
+        data = resources.files("efam_mujoco.presets").joinpath(f"{key}.json").read_bytes()
         label = f"preset {key.upper()}"
     else:
         path = Path(source)
@@ -59,12 +122,19 @@ def read_document(source: str | Path) -> tuple[dict, str]:
             raise MuscleFileError(
                 f"'{source}' is neither a preset ({', '.join(p.upper() for p in PRESETS)}) nor a file"
             )
-        text = path.read_text()
+        if path.is_dir():
+            raise MuscleFileError(f"{path}: is a folder, not a muscle file")
         label = str(path)
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise MuscleFileError(f"{label}: not valid JSON ({err})") from None
+        try:
+            size = path.stat().st_size
+            if size > MAX_FILE_BYTES:
+                raise MuscleFileError(
+                    f"{label}: {size} bytes is not a muscle file (at most {MAX_FILE_BYTES} bytes)"
+                )
+            data = path.read_bytes()
+        except OSError as err:
+            raise MuscleFileError(f"{label}: cannot read ({err.strerror})") from None
+    doc = parse_json_text(data, label)
     if not isinstance(doc, dict):
         raise MuscleFileError(f"{label}: expected a JSON object at the top level")
     fmt = doc.get("format")
@@ -73,18 +143,125 @@ def read_document(source: str | Path) -> tuple[dict, str]:
     return doc, label
 
 
+def _block(doc: dict, key: str, label: str) -> dict:
+    value = doc[key]
+    if not isinstance(value, dict):
+        raise MuscleFileError(f"{label}: key '{key}' must be a JSON object, got {_json_type(value)}")
+    return value
+
+
+def _json_type(value) -> str:
+    names = {bool: "a boolean", str: "a string", list: "a list", dict: "an object", type(None): "null"}
+    for kind, name in names.items():
+        if isinstance(value, kind):
+            return f"{name} ({json.dumps(value)[:40]})"
+    return f"{value!r}"
+
+
+def _check_keys(block: dict, allowed_bases: dict[str, str | None], where: str) -> None:
+    """Every key of ``block`` is ``<base>_<unit>`` for a known base (or exactly a known plain key)."""
+    for key in block:
+        if key in allowed_bases and allowed_bases[key] is None:
+            continue
+        base, unit = split_unit(key)
+        if base in allowed_bases and allowed_bases[base] is not None and unit:
+            continue
+        if key in allowed_bases:  # a base without its unit
+            continue  # read_quantity names it ("has no unit")
+        known = ", ".join(f"{b}_<unit>" if q else b for b, q in allowed_bases.items())
+        raise MuscleFileError(f"{where}: unknown key '{key}' (known: {known})")
+
+
+_SI_UNIT = {"length": "m", "volume": "m3", "pressure": "Pa", "angle": "rad"}
+
+
+def _plausible(value: float, block: dict, base: str, quantity: str, where: str) -> float:
+    """``value`` (SI) when plausible for a fluidic muscle, else an error naming the key as the
+    file wrote it and, for a factor of 1000 off, the unit that would fit."""
+    lo, hi = PLAUSIBLE[quantity]
+    if lo < value <= hi or (quantity == "pressure" and value == 0.0):
+        return value
+    key = next((k for k in block if split_unit(k)[0] == base), base)
+    unit = split_unit(key)[1] or ""
+    hint = ""
+    if value > hi and lo < value / 1000 <= hi:
+        smaller = {"m": "mm", "Pa": "", "kPa": "Pa", "MPa": "kPa", "m3": "L"}.get(unit, "")
+        if quantity == "volume":
+            smaller = "L" if unit == "m3" else ""
+        if smaller:
+            hint = f"; was it in {smaller} (write '{base}_{smaller}')?"
+    raise MuscleFileError(
+        f"{where}: key '{key}' = {block.get(key)!r} cannot be physical for a fluidic muscle "
+        f"({value:g} {_SI_UNIT[quantity]}; expected {lo:g} .. {hi:g} {_SI_UNIT[quantity]}){hint}"
+    )
+
+
+def _quantity(block: dict, base: str, quantity: str, where: str, default=REQUIRED):
+    value = read_quantity(block, base, quantity, where, default)
+    if value is None or value is default:
+        return value
+    return _plausible(value, block, base, quantity, where)
+
+
 def geometry_from_dict(g: dict, where: str) -> Geometry:
-    values = {f"{k}_m": read_quantity(g, k, "length", where) for k in _GEOMETRY_LENGTHS}
-    angle = read_quantity(g, "sleeve_angle_ref", "angle", where, default=None)
+    """The ``geometry`` block (paper Table 2) -> :class:`Geometry`; every key known, with units."""
+    if not isinstance(g, dict):
+        raise MuscleFileError(f"{where}: must be a JSON object, got {_json_type(g)}")
+    allowed = {k: "length" for k in _GEOMETRY_LENGTHS} | {"sleeve_angle_ref": "angle", "fittings": None}
+    _check_keys(g, allowed, where)
+    values = {}
+    for k in _GEOMETRY_LENGTHS:
+        value = read_quantity(g, k, "length", where)
+        values[f"{k}_m"] = (
+            value if k == "thread_thickness" and value == 0 else _plausible(value, g, k, "length", where)
+        )
+    angle = _quantity(g, "sleeve_angle_ref", "angle", where, default=None)
     if angle is not None:
         values["sleeve_angle_ref_deg"] = angle * 180.0 / 3.141592653589793
-    values["fittings"] = int(g.get("fittings", 2))
+    fittings = g.get("fittings", 2)
+    if isinstance(fittings, bool) or not isinstance(fittings, int) or not 1 <= fittings <= 16:
+        raise MuscleFileError(
+            f"{where}: key 'fittings' must be a whole number of end fittings (1 .. 16), got {_json_type(fittings)}"
+        )
+    values["fittings"] = fittings
     return Geometry(**values)
 
 
+def _validate_top_level(doc: dict, label: str) -> None:
+    for key in doc:
+        base, unit = split_unit(key)
+        if key in TOP_LEVEL_KEYS or (base == "deadband" and unit) or key == "deadband":
+            continue
+        raise MuscleFileError(
+            f"{label}: unknown key '{key}' (known: {', '.join(TOP_LEVEL_KEYS)}); a misspelled or "
+            "unit-less key is an error, never ignored"
+        )
+    for key in ("name", "description"):
+        if key in doc and not isinstance(doc[key], str):
+            raise MuscleFileError(f"{label}: key '{key}' must be a string, got {_json_type(doc[key])}")
+    if "notes" in doc and not (
+        isinstance(doc["notes"], list) and all(isinstance(n, str) for n in doc["notes"])
+    ):
+        raise MuscleFileError(f"{label}: key 'notes' must be a list of strings")
+    for key in _FREE_FORM:
+        if key in doc:
+            _block(doc, key, label)
+    if "tension_only" in doc and not isinstance(doc["tension_only"], bool):
+        raise MuscleFileError(
+            f"{label}: key 'tension_only' must be a JSON boolean (true or false, no quotes), got "
+            f"{_json_type(doc['tension_only'])}"
+        )
+
+
 def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscle:
-    """Build a :class:`Muscle` from a parsed muscle file, with the named (or default) law."""
+    """Build a :class:`Muscle` from a parsed muscle file, with the named (or default) law.
+
+    Strict: every key must be known and carry its unit, of the right JSON type (booleans only
+    as JSON booleans), and plausible for a fluidic muscle; the law must give a finite force at
+    every admissible length. Any problem is a :class:`MuscleFileError` naming the file and key.
+    """
     try:
+        _validate_top_level(doc, label)
         constants: dict[str, float] = {}
         if "geometry" in doc:
             geometry = geometry_from_dict(doc["geometry"], f"{label}: geometry")
@@ -94,49 +271,98 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
                 "theta_rest_deg": geometry.theta_rest_deg,
                 "bladder_volume_m3": geometry.bladder_volume_m3,
             }
-        given = doc.get("constants", {})
+        given = _block(doc, "constants", label) if "constants" in doc else {}
         where = f"{label}: constants"
-        for base, quantity, key in (
-            ("rest_length", "length", "rest_length_m"),
-            ("rest_diameter", "length", "rest_diameter_m"),
-            ("bladder_volume", "volume", "bladder_volume_m3"),
-        ):
-            value = read_quantity(given, base, quantity, where, default=constants.get(key))
+        _check_keys(given, dict(_CONSTANTS), where)
+        for base, quantity in _CONSTANTS[:2] + _CONSTANTS[3:]:
+            key = f"{base}_{'m3' if quantity == 'volume' else 'm'}"
+            value = _quantity(given, base, quantity, where, default=constants.get(key))
             if value is None:
                 raise MuscleFileError(f"{where}: missing key '{key}' (or a 'geometry' block)")
             constants[key] = value
-        theta = read_quantity(given, "theta_rest", "angle", where, default=None)
+        theta = _quantity(given, "theta_rest", "angle", where, default=None)
         if theta is not None:
             constants["theta_rest_deg"] = theta * 180.0 / 3.141592653589793
         if "theta_rest_deg" not in constants:
             raise MuscleFileError(f"{where}: missing key 'theta_rest_deg' (or a 'geometry' block)")
-        deadband = read_quantity(doc, "deadband", "pressure", label)
+        deadband = _quantity(doc, "deadband", "pressure", label)
+        if deadband < 0:
+            raise MuscleFileError(f"{label}: deadband must not be negative, got {deadband:g} Pa")
         stress = stress_from_document(doc, label, law)
         lock = doc.get("lock_stiffness_N_per_m", DEFAULT_LOCK_STIFFNESS)
-        if isinstance(lock, bool) or not isinstance(lock, (int, float)):
-            raise MuscleFileError(f"{label}: 'lock_stiffness_N_per_m' must be a number, got {lock!r}")
-        return Muscle(
+        if isinstance(lock, bool) or not isinstance(lock, (int, float)) or not 0 <= lock <= 1e9:
+            raise MuscleFileError(
+                f"{label}: key 'lock_stiffness_N_per_m' must be a number in [0, 1e9], got {_json_type(lock)}"
+            )
+        muscle = Muscle(
             **constants,
             deadband_Pa=deadband,
             stress=stress,
-            tension_only=bool(doc.get("tension_only", False)),
+            tension_only=doc.get("tension_only", False),
             lock_stiffness_N_per_m=float(lock),
             name=str(doc.get("name", label)),
         )
-    except (MuscleError, StressLawError, UnitError) as err:
-        msg = str(err)
+        check_finite_forces(muscle, f"{label}: stress law '{stress.name}'")
+        return muscle
+    except (MuscleError, StressLawError, UnitError, OverflowError, ZeroDivisionError) as err:
+        msg = " ".join(str(err).split()) or type(err).__name__
+        if isinstance(err, (OverflowError, ZeroDivisionError)):
+            msg = f"the muscle's constants overflow ({msg}): a value is far too large or small"
         raise MuscleFileError(msg if msg.startswith(label) else f"{label}: {msg}") from None
+    except ValueError as err:  # scipy's root finders on degenerate constants
+        if isinstance(err, MuscleFileError):
+            raise
+        raise MuscleFileError(f"{label}: the constants give no valid muscle ({err})") from None
+
+
+def check_finite_forces(muscle: Muscle, where: str, pressures_Pa=CHECK_PRESSURES_PA) -> None:
+    """Raise :class:`MuscleFileError` when ``muscle`` gives a non-finite force anywhere on its
+    admissible lengths at the given pressures (e.g. an exponential-decay law whose large E4
+    overflows ``exp`` in compression): MuJoCo would get 0 from the plugin and NaN from Python."""
+    lengths = np.linspace(muscle.min_length_m, muscle.max_length_m, 401)
+    with np.errstate(all="ignore"):
+        for p in pressures_Pa:
+            force = np.asarray(muscle.tension(p, lengths), dtype=float)
+            bad = ~np.isfinite(force)
+            if bad.any():
+                L = float(lengths[np.argmax(bad)])
+                raise MuscleFileError(
+                    f"{where}: the force is not finite at length {L:.6g} m, pressure {p / 1e3:g} kPa "
+                    f"(coefficients {muscle.stress.to_dict()}): a coefficient is too large for this muscle"
+                )
 
 
 def stress_from_document(doc: dict, label: str, law: str | None = None) -> StressLaw:
+    """The named (or the file's default) stress law of a muscle file; every law in the file is
+    checked for known names and coefficient keys."""
     block = doc.get("stress")
     if not isinstance(block, dict) or not isinstance(block.get("laws"), dict) or not block["laws"]:
         raise MuscleFileError(f"{label}: missing 'stress' block with a non-empty 'laws' object")
-    name = law or block.get("default") or next(iter(block["laws"]))
+    for key in block:
+        if key not in ("default", "laws"):
+            raise MuscleFileError(f"{label}: stress: unknown key '{key}' (known: default, laws)")
+    for name, coefficients in block["laws"].items():
+        if name not in LAW_NAMES:
+            raise MuscleFileError(f"{label}: stress: unknown law '{name}' (known: {', '.join(LAW_NAMES)})")
+        if not isinstance(coefficients, dict):
+            raise MuscleFileError(
+                f"{label}: stress law '{name}' must be an object of coefficients, got {_json_type(coefficients)}"
+            )
+    default = block.get("default")
+    if default is not None and not isinstance(default, str):
+        raise MuscleFileError(f"{label}: stress: 'default' must be a law's name, got {_json_type(default)}")
+    if default is not None and default not in block["laws"]:
+        raise MuscleFileError(
+            f"{label}: stress: 'default': no coefficients for stress law '{default}' "
+            f"(has: {', '.join(block['laws'])})"
+        )
+    name = law or default or next(iter(block["laws"]))
     if name not in block["laws"]:
         raise MuscleFileError(
             f"{label}: no coefficients for stress law '{name}' (has: {', '.join(block['laws'])})"
         )
+    for other, coefficients in block["laws"].items():  # every law in the file must be readable
+        StressLaw.from_dict(other, coefficients, where=f"{label}: stress law '{other}'")
     return StressLaw.from_dict(name, block["laws"][name], where=f"{label}: stress law '{name}'")
 
 
@@ -147,6 +373,7 @@ def load_muscle(source: str | Path, law: str | None = None) -> Muscle:
 
 
 def available_laws(source: str | Path) -> tuple[str, ...]:
+    """The stress laws a preset or muscle file has coefficients for."""
     doc, label = read_document(source)
     return tuple(doc.get("stress", {}).get("laws", {}))
 

@@ -39,15 +39,17 @@ the user. Input files are only ever read.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import sys
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .units import QUANTITIES, UnitError, factor, split_unit
+from .units import LENGTH, PRESSURE, QUANTITIES, UnitError, factor, split_unit
 
 
 @dataclass
@@ -77,10 +79,13 @@ class Recording:
 
     def subset(self, mask, **meta) -> Recording:
         """The samples where ``mask`` holds (a boolean or index array), same meta plus ``meta``."""
+        kept = {**self.meta, **meta}
+        lines = self.meta.get("lines")
+        if lines is not None and len(lines) == len(self) and "lines" not in meta:
+            kept["lines"] = np.asarray(lines)[mask]
         return Recording(
-            self.time_s[mask], self.length_m[mask], self.pressure_Pa[mask], self.force_N[mask],
-            {**self.meta, **meta},
-        )  # fmt: skip
+            self.time_s[mask], self.length_m[mask], self.pressure_Pa[mask], self.force_N[mask], kept
+        )
 
 
 class RecordingError(ValueError):
@@ -138,6 +143,39 @@ def _unit_table(base: str) -> dict:
     return QUANTITIES[_ROLES[_BASE_ROLE[base]][base][0]]
 
 
+#: A data row is a few dozen bytes; a line longer than this is not one (and is not read whole).
+MAX_LINE_BYTES = 65536
+#: No physical recording of a muscle holds a value this large in SI (1e9 m, Pa, N, s): such a
+#: value is a corrupt field (``1e300``), refused like a non-number.
+MAX_MAGNITUDE_SI = 1e9
+#: A gauge pressure cannot be below minus one atmosphere.
+P_ATM_PA = 101325.0
+
+
+def _decoded_lines(handle, label: str):
+    """The file's lines as text: UTF-8 (a BOM at the start is dropped), each line bounded;
+    an error names the line and the column of a bad byte."""
+    number = 0
+    while True:
+        raw = handle.readline(MAX_LINE_BYTES + 1)
+        if not raw:
+            return
+        number += 1
+        if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
+            raise RecordingError(
+                f"{label}: line {number}: longer than {MAX_LINE_BYTES} bytes (not a recording row)"
+            )
+        if number == 1 and raw.startswith(b"\xef\xbb\xbf"):
+            raw = raw[3:]
+        try:
+            yield raw.decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise RecordingError(
+                f"{label}: line {number}, column {err.start + 1}: byte 0x{raw[err.start]:02x} is not "
+                "UTF-8 (save the file as UTF-8 or ASCII)"
+            ) from None
+
+
 def read_csv(
     path: str | os.PathLike,
     *,
@@ -150,44 +188,67 @@ def read_csv(
     (the displacement is measured from the resting length); it is stored in ``meta`` either way.
     ``on_bad_rows``: ``"error"`` (default) raises on the first bad row; ``"drop"`` drops bad rows
     and lists them in ``meta["dropped_rows"]``.
+
+    The file is streamed (memory ~ 40 bytes a row); a row's line number is kept in
+    ``meta["lines"]`` for messages. A value that cannot be physical (a magnitude above 1e9 in SI,
+    a gauge pressure below -1 atm) is a bad row like a non-number.
     """
     if on_bad_rows not in BAD_ROW_POLICIES:
         raise ValueError(f"on_bad_rows must be one of {BAD_ROW_POLICIES}, got {on_bad_rows!r}")
     path = Path(path)
     label = str(path)
+    if path.is_dir():
+        raise RecordingError(f"{label}: is a folder, not a recording file")
     try:
-        handle = path.open(newline="")
+        handle = path.open("rb")
     except OSError as err:
         raise RecordingError(f"{label}: cannot open ({err.strerror})") from None
-    with handle:
-        lines = [(n, row) for n, row in enumerate(csv.reader(handle), start=1) if not _skip(row)]
-    if not lines:
-        raise RecordingError(f"{label}: no header line (expected {_ACCEPTED})")
-    header_line, header = lines[0]
-    columns = _columns(header, label, header_line)
+    columns = None
+    header: list[str] = []
     order = ("time", "length", "pressure", "force")
-    values: list[list[float]] = []
+    values = [array("d") for _ in order]
+    lines = array("q")
     dropped: list[dict] = []
     last_time = -math.inf
-    for line, row in lines[1:]:
-        parsed, problem = _parse_row(row, header, columns, order)
-        if problem is None and parsed[0] <= last_time:
-            what = "duplicate time" if parsed[0] == last_time else "time goes backwards (unsorted rows)"
-            problem = (columns["time"][1], f"{what}: {parsed[0]:g} s after {last_time:g} s")
-        if problem is not None:
-            column, reason = problem
-            if on_bad_rows == "error":
-                where = f"line {line}" + (f", column '{column}'" if column else "")
-                hint = " (read with on_bad_rows='drop' to drop such rows)"
-                raise RecordingError(f"{label}: {where}: {reason}{hint}")
-            dropped.append({"line": line, "column": column, "reason": reason})
-            continue
-        last_time = parsed[0]
-        values.append(parsed)
-    if len(values) < 2:
+    with handle:
+        reader = csv.reader(_decoded_lines(handle, label))
+        while True:
+            try:
+                row = next(reader)
+            except StopIteration:
+                break
+            except csv.Error as err:
+                raise RecordingError(f"{label}: line {reader.line_num}: not a CSV row ({err})") from None
+            line = reader.line_num
+            if _skip(row):
+                continue
+            if columns is None:
+                header, columns = row, _columns(row, label, line)
+                continue
+            parsed, problem = _parse_row(row, header, columns, order)
+            if problem is None and parsed[0] <= last_time:
+                what = "duplicate time" if parsed[0] == last_time else "time goes backwards (unsorted rows)"
+                problem = (columns["time"][1], f"{what}: {parsed[0]:g} s after {last_time:g} s")
+            if problem is not None:
+                column, reason = problem
+                if on_bad_rows == "error":
+                    where = f"line {line}" + (f", column '{column}'" if column else "")
+                    hint = " (--on-bad-rows drop, or on_bad_rows='drop' in Python, drops such rows)"
+                    raise RecordingError(f"{label}: {where}: {reason}{hint}")
+                if len(dropped) < 10000:
+                    dropped.append({"line": line, "column": column, "reason": reason})
+                else:
+                    dropped[-1] = {**dropped[-1], "more": dropped[-1].get("more", 0) + 1}
+                continue
+            last_time = parsed[0]
+            for store, value in zip(values, parsed):
+                store.append(value)
+            lines.append(line)
+    if columns is None:
+        raise RecordingError(f"{label}: no header line (expected {_ACCEPTED})")
+    if len(lines) < 2:
         raise RecordingError(f"{label}: fewer than 2 usable data rows ({len(dropped)} dropped)")
-    data = np.array(values)
-    length = data[:, 1]
+    time_s, length, pressure, force = (np.frombuffer(v, dtype=float).copy() for v in values)
     rest = None if rest_length_m is None else float(rest_length_m)
     if rest is not None and not (math.isfinite(rest) and rest > 0):
         raise RecordingError(f"{label}: rest_length_m must be a positive length, got {rest_length_m!r}")
@@ -200,15 +261,19 @@ def read_csv(
             )
         length = rest + length
     if np.any(length <= 0):
-        line = lines[1:][int(np.argmax(length <= 0))][0]
-        raise RecordingError(f"{label}: column '{length_column}': a length <= 0 m (first near line {line})")
+        line = lines[int(np.argmax(length <= 0))]
+        raise RecordingError(
+            f"{label}: line {line}, column '{length_column}': a length <= 0 m "
+            f"({length[int(np.argmax(length <= 0))]:g} m)"
+        )
     meta = {
         "source": label,
         "columns": [c.strip() for c in header],
         "rest_length_m": rest,
         "dropped_rows": dropped,
+        "lines": np.frombuffer(lines, dtype=np.int64).copy(),
     }
-    return Recording(data[:, 0], length, data[:, 2], data[:, 3], meta)
+    return Recording(time_s, length, pressure, force, meta)
 
 
 def _skip(row: list[str]) -> bool:
@@ -228,10 +293,16 @@ def _parse_row(row, header, columns, order):
         try:
             value = float(text)
         except ValueError:
-            return None, (name, f"not a number: {text!r}")
+            shown = text if len(text) <= 40 else text[:40] + "..."
+            return None, (name, f"not a number: {shown!r}")
         if not math.isfinite(value):
             return None, (name, f"not a finite number: {text!r}")
-        out.append(value * scale)
+        value *= scale
+        if not abs(value) <= MAX_MAGNITUDE_SI:
+            return None, (name, f"{text} cannot be physical (magnitude above {MAX_MAGNITUDE_SI:g} in SI)")
+        if role == "pressure" and value < -P_ATM_PA:
+            return None, (name, f"gauge pressure {value / 1e3:g} kPa is below -1 atm (-101.325 kPa)")
+        out.append(value)
     return out, None
 
 
@@ -284,3 +355,285 @@ def write_csv(path: str | os.PathLike, recording: Recording, *, pressure_unit: s
             handle.write(f"{t:.9g},{length:.9g},{p:.9g},{f:.9g}\n")
     tmp.replace(path)
     return path
+
+
+# ------------------------------------------------------------------ physical plausibility
+#: Names of the plausibility checks (``efam calibrate/diagnose --allow NAME`` turns one into a
+#: named warning).
+CHECKS = {
+    "length-unit": "lengths a factor of ten or more off the muscle's resting length (a unit mix-up)",
+    "length-range": "lengths outside the muscle's admissible range",
+    "rest-length": "a recording that never comes near the muscle's resting length",
+    "pressure-range": "pressures above the rated pressure",
+    "pressure-deadband": "pressures that never exceed the muscle's dead band",
+    "pressure-negative": "gauge pressures well below zero",
+    "force-range": "forces beyond what the muscle can produce",
+    "force-dead": "a constant or dead force channel (load cell)",
+    "nothing-varies": "length and pressure both constant",
+    "tension-only": "a tension-only muscle recorded pushing",
+}
+#: Default rated (largest allowed) gauge pressure: above the paper's 517 kPa and a Festo
+#: DMSP's 600 kPa with margin. ``--rated-pressure-kPa`` changes it.
+DEFAULT_RATED_PRESSURE_PA = 1.0e6
+#: Lengths this far beyond the admissible range (fraction of the resting length) are flagged.
+LENGTH_TOLERANCE = 0.02
+#: A recording must come this close (fraction of the resting length) to the resting length.
+REST_LENGTH_REACH = 0.5
+#: Gauge pressures below this are flagged (noise around zero passes).
+NEGATIVE_PRESSURE_PA = -10e3
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One failed plausibility check: its name (a key of :data:`CHECKS`) and what was seen."""
+
+    check: str
+    message: str
+
+
+class PlausibilityError(RecordingError):
+    """Recordings that cannot be physical for the muscle; the message names each check."""
+
+
+def _line(recording: Recording, index: int) -> str:
+    lines = recording.meta.get("lines")
+    if lines is not None and len(lines) == len(recording):
+        return f"line {int(lines[index])}"
+    return f"sample {index + 1}"
+
+
+def _column(recording: Recording, base: str) -> str:
+    for name in recording.meta.get("columns", []):
+        if split_unit(name)[0] in base.split("|"):
+            return name
+    return base.split("|")[0]
+
+
+def _unit_that_fits(value_si: float, target_si: float, column: str, table: dict) -> str:
+    """The unit of ``table`` under which the column's numbers would be nearest ``target_si``."""
+    base, unit = split_unit(column)
+    if unit not in table or value_si == 0:
+        return ""
+    raw = value_si / table[unit]
+    best = min(table, key=lambda u: abs(math.log(abs(raw * table[u]) / target_si)))
+    return f"{base}_{best}" if best != unit else ""
+
+
+def check_plausibility(
+    recordings,
+    muscle,
+    *,
+    rated_pressure_Pa: float = DEFAULT_RATED_PRESSURE_PA,
+    tension_only: bool | None = None,
+) -> list[Finding]:
+    """Physical plausibility of recordings for ``muscle``, before any fit (see :data:`CHECKS`).
+
+    Returns the findings (empty when everything is plausible); :func:`enforce_plausibility`
+    turns them into an error or named warnings. Each message names the file, the column, the
+    first offending line and, for a likely unit mix-up, the unit that would fit.
+    """
+    tension_only = muscle.tension_only if tension_only is None else tension_only
+    rest = muscle.rest_length_m
+    lo, hi = muscle.min_length_m, muscle.max_length_m
+    findings: list[Finding] = []
+    for rec in recordings:
+        src = rec.meta.get("source", "recording")
+        L, P, F = rec.length_m, rec.pressure_Pa, rec.force_N
+        lcol, pcol, fcol = (
+            _column(rec, "length|displacement"),
+            _column(rec, "pressure"),
+            _column(rec, "force|tension"),
+        )
+        median_L = float(np.median(L))
+        # lengths: a unit mix-up first (then the other length checks would only repeat it)
+        if not 0.1 < median_L / rest < 10:
+            if split_unit(lcol)[0] == "displacement":
+                d = float(np.median(np.abs(L - rest))) or float(np.max(np.abs(L - rest)))
+                fits = _unit_that_fits(d, 0.2 * rest, lcol, LENGTH)
+            else:
+                fits = _unit_that_fits(median_L, rest, lcol, LENGTH)
+            hint = f"; the numbers fit '{fits}'" if fits else ""
+            findings.append(Finding("length-unit", (
+                f"{src}: column '{lcol}': median length {median_L:.4g} m is {median_L / rest:.3g} x the "
+                f"muscle's resting length {rest:.4g} m{hint}"
+            )))  # fmt: skip
+        else:
+            out = (L < lo - LENGTH_TOLERANCE * rest) | (L > hi + LENGTH_TOLERANCE * rest)
+            if out.any():
+                i = int(np.argmax(out))
+                findings.append(Finding("length-range", (
+                    f"{src}: {_line(rec, i)}, column '{lcol}': length {L[i]:.4g} m is outside the muscle's "
+                    f"admissible range {lo:.4g} .. {hi:.4g} m ({np.count_nonzero(out)} samples)"
+                )))  # fmt: skip
+            nearest = float(np.min(np.abs(L - rest)))
+            if nearest > REST_LENGTH_REACH * rest:
+                findings.append(Finding("rest-length", (
+                    f"{src}: column '{lcol}': the recording never comes within {REST_LENGTH_REACH:.0%} of the "
+                    f"muscle's resting length {rest:.4g} m (nearest {nearest:.4g} m away): is --muscle the "
+                    "muscle that was tested?"
+                )))  # fmt: skip
+        # pressures
+        top = float(np.max(P))
+        if top > rated_pressure_Pa:
+            i = int(np.argmax(P > rated_pressure_Pa))
+            fits = _unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE)
+            hint = f"; the numbers fit '{fits}'" if fits else ""
+            findings.append(Finding("pressure-range", (
+                f"{src}: {_line(rec, i)}, column '{pcol}': pressure {P[i] / 1e3:.4g} kPa is above the rated "
+                f"pressure {rated_pressure_Pa / 1e3:g} kPa{hint}"
+            )))  # fmt: skip
+        elif top <= muscle.deadband_Pa:
+            fits = _unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE) if top > 0 else ""
+            hint = f"; the numbers fit '{fits}'" if fits else ""
+            findings.append(Finding("pressure-deadband", (
+                f"{src}: column '{pcol}': the pressure never exceeds the muscle's dead band "
+                f"({top / 1e3:.4g} kPa <= {muscle.deadband_Pa / 1e3:.4g} kPa), so the muscle is never "
+                f"actuated{hint}"
+            )))  # fmt: skip
+        if float(np.min(P)) < NEGATIVE_PRESSURE_PA:
+            i = int(np.argmin(P))
+            findings.append(Finding("pressure-negative", (
+                f"{src}: {_line(rec, i)}, column '{pcol}': gauge pressure {P[i] / 1e3:.4g} kPa is well below "
+                "zero; the model has no vacuum physics"
+            )))  # fmt: skip
+        # forces: what the muscle can produce over the recorded lengths and pressures
+        step = max(1, len(rec) // 4000)
+        Lc = np.clip(L[::step], lo, hi)
+        Pc = np.clip(P[::step], 0.0, None)
+        free = dataclasses.replace(muscle, tension_only=False) if muscle.tension_only else muscle
+        with np.errstate(all="ignore"):  # what the muscle could push or pull, before any clamp
+            model = np.asarray(free.push(Pc, Lc), dtype=float)
+            span = np.linspace(float(np.min(Lc)), float(np.max(Lc)), 200)  # the recorded lengths only
+            reach = np.asarray(free.push(float(np.max(Pc)), span), dtype=float)
+        model = model[np.isfinite(model)]
+        capacity = float(np.max(np.abs(reach[np.isfinite(reach)]), initial=0.0))
+        limit = 3.0 * capacity + 50.0
+        big = np.abs(F) > limit
+        if big.any():
+            i = int(np.argmax(big))
+            fits = _unit_that_fits(float(np.max(np.abs(F))), max(capacity, 1.0), fcol, FORCE_UNITS)
+            hint = f"; the numbers fit '{fits}'" if fits else ""
+            findings.append(Finding("force-range", (
+                f"{src}: {_line(rec, i)}, column '{fcol}': force {F[i]:.4g} N is beyond what the muscle can "
+                f"produce at the recorded pressures (at most about {capacity:.4g} N){hint}"
+            )))  # fmt: skip
+        expected = float(np.ptp(model)) if model.size else 0.0
+        spread = float(np.ptp(F))
+        if (
+            spread == 0.0
+            or len(np.unique(F[: min(len(F), 100000)])) <= 2
+            or (expected > 5.0 and spread < 0.02 * expected)
+        ):
+            findings.append(Finding("force-dead", (
+                f"{src}: column '{fcol}': the force hardly changes (range {spread:.4g} N over {len(F)} samples) "
+                f"while the model expects a range of {expected:.4g} N: a dead or disconnected load cell?"
+            )))  # fmt: skip
+        if np.ptp(L) == 0.0 and np.ptp(P) == 0.0:
+            findings.append(Finding("nothing-varies", (
+                f"{src}: columns '{lcol}' and '{pcol}' are both constant: nothing was tested"
+            )))  # fmt: skip
+        if tension_only:
+            threshold = max(5.0, 0.25 * capacity)  # a load-cell zero error passes; real pushing does not
+            pushing = F > threshold
+            if np.mean(pushing) > 0.05:
+                i = int(np.argmax(pushing))
+                findings.append(Finding("tension-only", (
+                    f"{src}: {_line(rec, i)}, column '{fcol}': the muscle is declared tension-only "
+                    f"(--tension-only or the muscle file) but pushes in {np.mean(pushing):.0%} of the samples "
+                    f"(e.g. {F[i]:.4g} N, push positive)"
+                )))  # fmt: skip
+    return findings
+
+
+FORCE_UNITS = {**QUANTITIES["force"], "mN": 1e-3}
+
+
+def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str = "--allow") -> None:
+    """Raise :class:`PlausibilityError` listing every finding whose check is not in ``allow``;
+    tell ``warn`` (default: standard error) each allowed one as ``warning [check]: ...``."""
+    warn = warn or (lambda line: print(line, file=sys.stderr))
+    allow = set(allow)
+    unknown = allow - set(CHECKS)
+    if unknown:
+        raise ValueError(f"{flag}: unknown check '{sorted(unknown)[0]}' (known: {', '.join(CHECKS)})")
+    refused = [f for f in findings if f.check not in allow]
+    for f in findings:
+        if f.check in allow:
+            warn(f"warning [{f.check}]: {f.message}")
+    if refused:
+        lines = [f"[{f.check}] {f.message}" for f in refused]
+        names = " ".join(sorted({f.check for f in refused}))
+        raise PlausibilityError(
+            "implausible recording(s): " + "; ".join(lines)
+            + f" (if the data are right, pass {flag} {names} to continue with a warning)"
+        )  # fmt: skip
+
+
+# ------------------------------------------------------------------------------- decimation
+#: Samples that go into a fit or a diagnosis at most (``--max-samples``): above it the
+#: recordings are decimated, so memory and time stay bounded whatever the file's length.
+DEFAULT_MAX_SAMPLES = 100_000
+
+
+def decimate(recordings, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[list[Recording], str]:
+    """Keep every k-th sample of every recording, with the smallest k that brings the total to
+    at most ``max_samples`` (k = ceil(total / max_samples); each recording keeps its first
+    sample). The rule is a stride, not an average: kept samples are real, time stamps and
+    hysteresis loops are kept, noise is not filtered. Returns the recordings and a note for the
+    user ('' when nothing was dropped)."""
+    if max_samples < 1000:
+        raise ValueError(f"--max-samples must be at least 1000, got {max_samples}")
+    total = sum(len(r) for r in recordings)
+    if total <= max_samples:
+        return list(recordings), ""
+    k = -(-total // max_samples)
+    out = [r.subset(slice(None, None, k), decimated_every=k) for r in recordings]
+    kept = sum(len(r) for r in out)
+    note = (
+        f"note: {total} samples decimated to {kept} (every {k}th sample kept; at most {max_samples} "
+        "go into the fit, --max-samples changes it)"
+    )
+    return out, note
+
+
+# ------------------------------------------------------------------- the commands' input side
+def add_recording_arguments(parser) -> None:
+    """The flags every command that fits recordings shares (``efam calibrate``, ``diagnose``)."""
+    parser.add_argument(
+        "--on-bad-rows", choices=BAD_ROW_POLICIES, default="error",
+        help="bad CSV rows: stop with an error, or drop them and report which",
+    )  # fmt: skip
+    parser.add_argument(
+        "--allow", nargs="+", default=[], metavar="CHECK", choices=tuple(CHECKS),
+        help="continue past these failed plausibility checks with a named warning: "
+        + "; ".join(f"{k}: {v}" for k, v in CHECKS.items()) + " (default: none, every check is an error)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--rated-pressure-kPa", type=float, default=DEFAULT_RATED_PRESSURE_PA / 1e3,
+        help="the muscle's rated gauge pressure: recorded pressures above it are refused",
+    )  # fmt: skip
+    parser.add_argument(
+        "--max-samples", type=int, default=DEFAULT_MAX_SAMPLES,
+        help="samples that go into the fit at most; longer recordings keep every k-th sample",
+    )  # fmt: skip
+
+
+def read_for_fit(args, muscle, warn=None) -> list[Recording]:
+    """Read ``args.files``, check their physical plausibility against ``muscle`` (errors unless
+    ``--allow``), and decimate them to ``--max-samples``: what ``calibrate`` and ``diagnose`` fit.
+    Messages use the command line's flag names."""
+    warn = warn or (lambda line: print(line, file=sys.stderr))
+    rated = args.rated_pressure_kPa
+    if not (math.isfinite(rated) and 0 < rated <= 100e3):
+        raise ValueError(f"--rated-pressure-kPa must be in (0, 100000] kPa, got {rated:g}")
+    if args.max_samples < 1000:
+        raise ValueError(f"--max-samples must be at least 1000, got {args.max_samples}")
+    recordings = read_recordings(
+        args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows, warn=warn
+    )
+    findings = check_plausibility(recordings, muscle, rated_pressure_Pa=rated * 1e3)
+    enforce_plausibility(findings, allow=args.allow, warn=warn)
+    recordings, note = decimate(recordings, args.max_samples)
+    if note:
+        warn(note)
+    return recordings

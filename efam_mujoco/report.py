@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import rig
-from .files import write_json_atomic
+from .files import replace_folder, safe_name, save_figure, strict_json, write_text_atomic
 from .muscle import Muscle
 from .musclefile import load_muscle
 from .stress import LAW_NAMES
@@ -27,12 +28,15 @@ class PressureRow:
 
 
 def compare(muscle: Muscle, pressures_Pa=PAPER_PRESSURES_PA) -> list[PressureRow]:
-    """Blocked force (Eq. 9) and free extension (root of Eq. 2) beside the MuJoCo rig's."""
+    """Blocked force (Eq. 9) and free extension (root of Eq. 2) beside the MuJoCo rig's, push
+    positive. Pressures (Pa) outside the rig's control range are refused: MuJoCo would clamp
+    them while the analytic column would not, and the difference would read as a model error."""
+    rig.check_control_range(pressures_Pa, rig.RigOptions(), "pressures_Pa")
     return [
         PressureRow(
             pressure_Pa=p,
-            blocked_analytic_N=-muscle.blocked_force(p),
-            blocked_mujoco_N=rig.blocked_force(muscle, p),
+            blocked_analytic_N=float(muscle.blocked_push(p)),
+            blocked_mujoco_N=rig.blocked_push(muscle, p),
             extension_analytic=float(muscle.free_extension(p)),
             extension_mujoco=rig.free_extension(muscle, p),
         )
@@ -122,9 +126,10 @@ def force_stroke_figure(muscle: Muscle, path: Path, pressures_Pa=PAPER_PRESSURES
     ax.legend(title="gauge pressure", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=120)
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -132,29 +137,54 @@ def force_stroke_figure(muscle: Muscle, path: Path, pressures_Pa=PAPER_PRESSURES
 def _pressures(args) -> tuple[float, ...]:
     if not args.pressures_kPa:
         return PAPER_PRESSURES_PA
-    bad = [p for p in args.pressures_kPa if not (np.isfinite(p) and p >= 0)]
-    if bad:
-        raise ValueError(f"--pressures-kPa: pressures must be finite and >= 0, got {bad}")
+    high = rig.RigOptions().max_pressure_Pa
+    for p in args.pressures_kPa:
+        if not (np.isfinite(p) and 0 <= p * 1e3 <= high):
+            raise ValueError(
+                f"--pressures-kPa: {p:g} kPa is outside the rig's control range 0 .. {high / 1e3:g} kPa "
+                "(MuJoCo would clamp it, the analytic column would not)"
+            )
+    if len(args.pressures_kPa) > MAX_PRESSURES:
+        raise ValueError(f"--pressures-kPa: at most {MAX_PRESSURES} pressures, got {len(args.pressures_kPa)}")
+    if 0 < max(args.pressures_kPa) < 1.0:
+        print(
+            f"warning: --pressures-kPa {max(args.pressures_kPa):g} is below 1 kPa: pressures here are kPa",
+            file=sys.stderr,
+        )
     return tuple(p * 1e3 for p in args.pressures_kPa)
 
 
+#: ``efam muscle --pressures-kPa`` takes at most this many pressures (each runs the MuJoCo rig).
+MAX_PRESSURES = 50
+
+
 def run_muscle(args) -> int:
+    """``efam muscle``: the table on standard output, and as JSON with ``--json``."""
     muscle = load_muscle(args.muscle, args.stress)
-    rows = compare(muscle, _pressures(args))
+    pressures = _pressures(args)
+    rows = compare(muscle, pressures)
+    doc = report_dict(muscle, rows)
+    text = strict_json(doc)  # before printing: a non-finite value is an error, not a bad file
     print(format_report(muscle, rows))
     if args.json:
-        write_json_atomic(Path(args.json), report_dict(muscle, rows))
+        write_text_atomic(Path(args.json), text)
     return 0
 
 
 def run_demo(args) -> int:
+    """``efam demo``: the table and a force-stroke figure in the ``--out`` folder (replaced as a
+    whole: it holds only what the demo writes)."""
     muscle = load_muscle(args.muscle, args.stress)
     rows = compare(muscle)
+    doc = report_dict(muscle, rows)
+    text = strict_json(doc)
     print(format_report(muscle, rows))
     out = Path(args.out)
-    figure = force_stroke_figure(muscle, out / f"force_stroke_{muscle.name.lower() or 'muscle'}.png")
-    write_json_atomic(out / "demo.json", report_dict(muscle, rows))
-    print(f"\nfigure: {figure}\ntable:  {out / 'demo.json'}")
+    figure_name = f"force_stroke_{safe_name(muscle.name.lower(), 'muscle')}.png"
+    with replace_folder(out, "--out") as staging:
+        force_stroke_figure(muscle, staging / figure_name)
+        (staging / "demo.json").write_text(text)
+    print(f"\nfigure: {out / figure_name}\ntable:  {out / 'demo.json'}")
     return 0
 
 
@@ -168,10 +198,13 @@ def register_cli(sub) -> None:
     p.add_argument("muscle", help="preset (FAM1, FAM2) or muscle file (JSON)")
     p.add_argument("--stress", choices=LAW_NAMES, help="stress law (default: the file's default law)")
     p.add_argument(
-        "--pressures-kPa", type=float, nargs="+", help="gauge pressures (default: the paper's five)"
+        "--pressures-kPa",
+        type=float,
+        nargs="+",
+        help="gauge pressures in kPa, within the rig's 0 .. 1000 kPa (default: the paper's five)",
     )
     p.add_argument("--json", help="write the table as JSON to this file")
-    p.set_defaults(run=run_muscle)
+    p.set_defaults(run=run_muscle, file_inputs=("muscle",), file_outputs=("json",))
 
     d = sub.add_parser(
         "demo",
@@ -181,5 +214,9 @@ def register_cli(sub) -> None:
     )
     d.add_argument("--muscle", default="FAM1", help="preset or muscle file (default FAM1)")
     d.add_argument("--stress", choices=LAW_NAMES, help="stress law (default: the file's default law)")
-    d.add_argument("--out", default="efam_demo", help="output folder (default ./efam_demo)")
-    d.set_defaults(run=run_demo)
+    d.add_argument(
+        "--out",
+        default="efam_demo",
+        help="output folder, replaced as a whole (a new, empty or previous demo folder; default ./efam_demo)",
+    )
+    d.set_defaults(run=run_demo, file_inputs=("muscle",), file_outputs=("out",))

@@ -32,6 +32,7 @@ import numpy as np
 from .muscle import Muscle
 from .plugin import actuator_dynamics, effects_config, instance_xml
 from .plugin import load as load_plugin
+from .units import check_pressure_Pa, check_within
 
 MODES = ("stroke", "free", "loaded")
 TIMESTEP_S = 1e-3
@@ -181,8 +182,11 @@ def _zero_error(model: mujoco.MjModel) -> float:
 def stroke_forces(
     muscle: Muscle, pressure_Pa: float, lengths_m, settle_s: float = 0.0, effects=()
 ) -> np.ndarray:
-    """Displacement-controlled test: the load cell (push positive) at each prescribed length."""
-    model, data = build_rig(muscle, RigOptions(mode="stroke", effects=effects))
+    """Displacement-controlled test: the load cell (push positive) at each prescribed length.
+    ``pressure_Pa`` in Pa, inside the rig's control range (else an error, never a clamp)."""
+    options = RigOptions(mode="stroke", effects=effects)
+    check_control_range(pressure_Pa, options, "stroke_forces: pressure_Pa")
+    model, data = build_rig(muscle, options)
     forces = []
     for length in np.atleast_1d(lengths_m):
         data.mocap_pos[0] = (0.0, 0.0, float(length))
@@ -243,9 +247,35 @@ def drive(model: mujoco.MjModel, data: mujoco.MjData, recording, samples=None) -
     return out + _zero_error(model)
 
 
-def blocked_force(muscle: Muscle, pressure_Pa: float) -> float:
-    """Load-cell force with the plate held at the resting length (push positive)."""
+def blocked_push(muscle: Muscle, pressure_Pa: float) -> float:
+    """Load-cell force with the plate held at the resting length, push positive (the MuJoCo
+    sign; ``Muscle.blocked_push`` is its analytic counterpart)."""
     return float(stroke_forces(muscle, pressure_Pa, [muscle.rest_length_m])[0])
+
+
+def blocked_tension(muscle: Muscle, pressure_Pa: float) -> float:
+    """As :func:`blocked_push` in the paper's sign (positive = pulls; ``Muscle.blocked_tension``)."""
+    return -blocked_push(muscle, pressure_Pa)
+
+
+def blocked_force(muscle: Muscle, pressure_Pa: float) -> float:
+    """Deprecated: push positive (= :func:`blocked_push`), while ``Muscle.blocked_force`` was the
+    paper sign; use ``blocked_push`` or ``blocked_tension``."""
+    import warnings
+
+    warnings.warn(
+        "rig.blocked_force is push positive; use rig.blocked_push (same value) or rig.blocked_tension",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return blocked_push(muscle, pressure_Pa)
+
+
+def check_control_range(pressures_Pa, options: RigOptions = RigOptions(), what: str = "pressure_Pa") -> None:
+    """Refuse pressures outside the rig's control range (MuJoCo would clamp them silently, and
+    the analytic and MuJoCo columns would no longer use the same input); warn below 1000 Pa."""
+    check_pressure_Pa(pressures_Pa, what, stacklevel=4)
+    check_within(pressures_Pa, options.min_pressure_Pa, options.max_pressure_Pa, what=what, unit="Pa")
 
 
 def equilibrium_length(
@@ -255,8 +285,10 @@ def equilibrium_length(
     max_time_s: float = 20.0,
     tol_m_per_s: float = 1e-7,
 ) -> float:
-    """Let the plate settle under pressure (and a compressive load); return the muscle length."""
+    """Let the plate settle under pressure (and a compressive load); return the muscle length.
+    ``pressure_Pa`` in Pa, inside the rig's control range (else an error, never a clamp)."""
     options = RigOptions(mode="loaded" if load_N else "free")
+    check_control_range(pressure_Pa, options, "equilibrium_length: pressure_Pa")
     model, data = build_rig(muscle, options)
     data.ctrl[0] = pressure_Pa
     if load_N:
@@ -283,13 +315,15 @@ def write_models(folder: str = "models") -> list[str]:
     """Regenerate ``models/rig_<mode>_fam1.xml`` (a test checks they equal the builder's output)."""
     from pathlib import Path
 
+    from .files import check_outputs, write_text_atomic
     from .musclefile import load_muscle
 
     muscle = load_muscle("FAM1")
+    check_outputs({"folder": folder}, {})  # never into site-packages
     paths = []
     for mode in MODES:
         path = Path(folder) / f"rig_{mode}_fam1.xml"
-        path.write_text(rig_xml(muscle, RigOptions(mode=mode)))
+        write_text_atomic(path, rig_xml(muscle, RigOptions(mode=mode)))
         paths.append(str(path))
     return paths
 

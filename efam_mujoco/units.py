@@ -76,3 +76,54 @@ def read_quantity(mapping: dict, base: str, quantity: str, where: str, default=R
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise UnitError(f"{where}: key '{key}' must be a finite number, got {value!r}")
     return float(value) * factor(unit, quantity, f"{where}: key '{key}'")
+
+
+# ------------------------------------------------------------- unit checks at Python entry points
+#: Below this a gauge pressure handed to a Python entry point (in Pa) is most likely kPa or psi:
+#: every muscle of the paper has a dead band of tens of kPa, so such a pressure does nothing.
+SMALLEST_LIKELY_PRESSURE_PA = 1000.0
+
+
+class PressureUnitWarning(UserWarning):
+    """A pressure given in Pa that is so small it was probably meant in kPa (or psi)."""
+
+
+def check_pressure_Pa(pressure_Pa, where: str, *, stacklevel: int = 3) -> None:
+    """Warn (:class:`PressureUnitWarning`) when the largest non-zero pressure given to ``where``
+    is below 1000 Pa: Python entry points take Pa, and 300 "Pa" is almost surely 300 kPa."""
+    import warnings
+
+    import numpy as np
+
+    values = np.abs(np.asarray(pressure_Pa, dtype=float))
+    values = values[np.isfinite(values) & (values > 0)]
+    if values.size and float(values.max()) < SMALLEST_LIKELY_PRESSURE_PA:
+        top = float(values.max())
+        warnings.warn(
+            f"{where}: pressure {top:g} Pa is below {SMALLEST_LIKELY_PRESSURE_PA:g} Pa; pressures are "
+            f"in Pa here (did you mean {top:g} kPa = {top * 1e3:g} Pa?)",
+            PressureUnitWarning,
+            stacklevel=stacklevel,
+        )
+
+
+class RangeError(ValueError):
+    """A value outside the range a model can take: it would be clamped (saturated) silently."""
+
+
+def check_within(values, low: float, high: float, *, what: str, unit: str = "", scale: float = 1.0) -> None:
+    """Raise :class:`RangeError` when a value is outside ``[low, high]`` (a model's control range,
+    a size bound): MuJoCo would clamp a control silently, so the caller refuses instead. ``what``
+    names the value the way the user gave it (``--pressures-kPa``); ``scale`` converts SI to the
+    unit shown (1e-3 for kPa)."""
+    import numpy as np
+
+    array = np.atleast_1d(np.asarray(values, dtype=float))
+    bad = ~np.isfinite(array) | (array < low) | (array > high)
+    if bad.any():
+        first = float(array[np.argmax(bad)])
+        u = f" {unit}" if unit else ""
+        raise RangeError(
+            f"{what}: {first * scale:g}{u} is outside [{low * scale:g}, {high * scale:g}]{u} "
+            "(it would be clamped silently)"
+        )

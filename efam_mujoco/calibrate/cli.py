@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
-from ..files import write_json_atomic
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from ..files import OutputSet, check_outputs
 from ..musclefile import muscle_from_document, read_document
-from ..recordings import read_recordings
+from ..recordings import add_recording_arguments, read_for_fit
 from ..stress import LAW_NAMES
 from . import report
 from .baseline import paper_baseline
@@ -13,6 +17,7 @@ from .fit import OBJECTIVES
 
 #: A placeholder law for a muscle file that has geometry but no stress law yet.
 _PLACEHOLDER_LAW = {"E1_Pa": 1.0e6, "E2": 0.0}
+FIGURE_SUFFIXES = ("_blocked.png", "_strokes.png", "_stress.png")
 
 
 def load_uncalibrated(source: str):
@@ -20,7 +25,8 @@ def load_uncalibrated(source: str):
     what calibration estimates, so a file may leave them out (a placeholder is used)."""
     doc, label = read_document(source)
     doc = dict(doc)
-    doc.setdefault("deadband_kPa", 0.0)
+    if not any(key == "deadband" or key.startswith("deadband_") for key in doc):
+        doc["deadband_kPa"] = 0.0
     laws = doc.get("stress", {}).get("laws", {}) if isinstance(doc.get("stress"), dict) else {}
     if not laws:
         doc["stress"] = {"default": "linear", "laws": {"linear": dict(_PLACEHOLDER_LAW)}}
@@ -29,6 +35,7 @@ def load_uncalibrated(source: str):
 
 
 def register_cli(subparsers) -> None:
+    """Add ``efam calibrate`` to the ``efam`` command line."""
     p = subparsers.add_parser(
         "calibrate",
         help="identify a muscle's dead band, braid angle and stress laws from bench recordings",
@@ -36,17 +43,16 @@ def register_cli(subparsers) -> None:
             "Calibrate the force-balance model on recordings (CSV: time_s, length_m or displacement_mm, "
             "pressure_kPa/_Pa/_psi, force_N or tension_N). Estimates the dead band and resting braid "
             "angle from blocked forces (paper Sec. 4.3-4.4), then each stress law; prints the paper's "
-            "Table 3 and Table 4 forms and held-out errors; writes a calibrated muscle file."
+            "Table 3 and Table 4 forms and held-out errors; writes a calibrated muscle file. Recordings "
+            "are checked for physical plausibility first (see --allow)."
         ),
     )
-    p.add_argument("files", nargs="+", metavar="FILE", help="recording CSV files")
+    p.add_argument("files", nargs="+", metavar="FILE", help="recording CSV files (only ever read)")
     p.add_argument("--muscle", required=True, help="preset (FAM1, FAM2) or muscle file: the geometry")
-    p.add_argument("--stress", default="all", help=f"law to fit: {', '.join(LAW_NAMES)} or all (default)")
+    p.add_argument("--stress", default="all", choices=(*LAW_NAMES, "all"), help="law to fit, or all")
     p.add_argument("--out", help="write the calibrated muscle file here (all laws, best as default)")
     p.add_argument("--json", help="write the JSON summary here")
     p.add_argument("--figures", metavar="PREFIX", help="write PREFIX_blocked/_strokes/_stress.png")
-    p.add_argument("--on-bad-rows", choices=("error", "drop"), default="error",
-                   help="bad CSV rows: stop with an error (default) or drop them and report which")  # fmt: skip
     p.add_argument("--objective", choices=OBJECTIVES, default=None,
                    help="eq14: the paper's Eq. 14 error (default for isobaric strokes); lsq: least "
                    "squares in N")  # fmt: skip
@@ -58,21 +64,38 @@ def register_cli(subparsers) -> None:
     p.add_argument("--no-heldout", action="store_true", help="skip the leave-one-pressure-out errors")
     p.add_argument("--baseline", action="store_true",
                    help="also run the paper's Nelder-Mead procedure and compare (Eq. 14 and time)")  # fmt: skip
-    p.set_defaults(run=run)
+    add_recording_arguments(p)
+    p.set_defaults(run=run, file_inputs=("files", "muscle"), file_outputs=("out", "json"))
+
+
+def figure_paths(prefix) -> list[Path]:
+    """The figures ``--figures PREFIX`` writes."""
+    return [Path(f"{prefix}{suffix}") for suffix in FIGURE_SUFFIXES]
 
 
 def run(args) -> int:
+    """``efam calibrate``: read, check, fit, then write every output together."""
+    if args.figures:
+        check_outputs(
+            {"--figures": figure_paths(args.figures)}, {"FILE": args.files, "--muscle": [args.muscle]}
+        )
+        check_outputs({"--figures": figure_paths(args.figures), "--out": args.out, "--json": args.json}, {})
     muscle = load_uncalibrated(args.muscle)
     if args.tension_only:
-        from dataclasses import replace
-
         muscle = replace(muscle, tension_only=True)
-    recordings = read_recordings(args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
+    recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
     laws = LAW_NAMES if args.stress == "all" else (args.stress,)
     cal = calibrate(
         recordings, muscle, laws, estimate_theta=not args.keep_theta, fit_deadband=args.fit_deadband,
         objective=args.objective, heldout=not args.no_heldout,
     )  # fmt: skip
+    samples = cal.problem.samples
+    mode = (
+        f"isobaric strokes at {len(samples.levels_Pa)} pressure levels"
+        if samples.isobaric
+        else "pressure ramps / mixed data (no isobaric levels found)"
+    )
+    print(f"data: {len(samples)} samples, treated as {mode}")
     print(report.summary(cal))
     print("\nTable 3 form: Eq. 14 relative error (%) per comparison length")
     print(report.table3(cal.fits))
@@ -82,12 +105,32 @@ def run(args) -> int:
         base = paper_baseline(cal.fits[cal.best_law].muscle, cal.problem, list(cal.fits))
         print("\nthe paper's procedure (Nelder-Mead on Eq. 14) vs this calibration")
         print(report.baseline_table(cal.fits, base))
-    if args.out:
-        print(f"\nwrote muscle file {cal.save_muscle(args.out)}")
-    if args.json:
-        write_json_atomic(args.json, cal.to_json())
-        print(f"wrote {args.json}")
-    if args.figures:
-        for path in report.write_figures(cal, args.figures):
-            print(f"wrote {path}")
+    outputs = OutputSet()
+    try:
+        if args.out:
+            from ..musclefile import muscle_document
+
+            outputs.json(args.out, _muscle_file_doc(cal, muscle_document))
+        if args.json:
+            outputs.json(args.json, cal.to_json())
+        if args.figures:
+            staged = [outputs.staging_path(path) for path in figure_paths(args.figures)]
+            report.figure_blocked(cal, staged[0])
+            report.figure_strokes(cal, staged[1])
+            report.figure_stress(cal, staged[2])
+        written = outputs.commit()
+    finally:
+        outputs.discard()
+    for path in written:
+        print(f"wrote {path}")
     return 0
+
+
+def _muscle_file_doc(cal, muscle_document) -> dict:
+    """The document ``Calibration.save_muscle`` writes, built in memory (written with the rest)."""
+    import json
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="efam-muscle.") as folder:
+        path = cal.save_muscle(Path(folder) / "muscle.json")
+        return json.loads(path.read_text())

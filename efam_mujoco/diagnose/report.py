@@ -260,32 +260,44 @@ def register_cli(subparsers) -> None:
     p.add_argument("--json", help="write the JSON result here")
     p.add_argument("--report", metavar="DIR", help="write report.txt and the figures into DIR")
     p.add_argument("--tension-only", action="store_true", help="a muscle that cannot push (contractile)")
-    p.add_argument("--on-bad-rows", choices=("error", "drop"), default="error",
-                   help="bad CSV rows: stop with an error (default) or drop them and report which")  # fmt: skip
-    p.set_defaults(run=run)
+    from ..recordings import add_recording_arguments
+
+    add_recording_arguments(p)
+    p.set_defaults(run=run, file_inputs=("files", "muscle"), file_outputs=("json", "report"))
 
 
 def run(args) -> int:
+    """``efam diagnose``: read and check the recordings, diagnose, then write every output."""
+    import sys
     from dataclasses import replace
 
+    from ..files import OutputSet, check_replaceable_folder, replace_folder, strict_json
     from ..musclefile import load_muscle
-    from ..recordings import read_recordings
+    from ..recordings import read_for_fit
 
+    if args.report:
+        check_replaceable_folder(args.report, "--report")
     muscle = load_muscle(args.muscle)
     if args.tension_only:
         muscle = replace(muscle, tension_only=True)
-    recordings = read_recordings(args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows)
+    recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
     d = diagnose(recordings, muscle)
     report = text(d)
     print(report, end="")
+    outputs = OutputSet()
     if args.json:
-        write_json(args.json, d)
+        outputs.json(args.json, d.to_json())
     if args.report:
         directory = Path(args.report)
-        directory.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(directory / "report.txt", report)
-        write_text_atomic(directory / "rig_with_effects.xml", rig_with_effects(d))
+        with replace_folder(directory, "--report") as staging:
+            (staging / "report.txt").write_text(report)
+            (staging / "rig_with_effects.xml").write_text(rig_with_effects(d))
+            if args.json is None:
+                (staging / "diagnosis.json").write_text(strict_json(d.to_json()))
+            names = [path.name for path in figures(d, staging)]
         print(f"model: {directory / 'rig_with_effects.xml'} (the re-fitted muscle, effects switched on)")
-        for path in figures(d, directory):
-            print(f"figure: {path}")
+        for name in names:
+            print(f"figure: {directory / name}")
+    for path in outputs.commit():
+        print(f"wrote {path}")
     return 0
