@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -149,6 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     from .files import check_outputs, route_mujoco_log
 
     command = f"efam {args.command}"
+    previous_term = _terminate_as_interrupt()
     try:
         inputs, outputs = _file_args(args)
         check_outputs(outputs, inputs)
@@ -177,6 +179,23 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 3
+    finally:
+        if previous_term is not None:
+            signal.signal(signal.SIGTERM, previous_term)
+
+
+def _terminate_as_interrupt():
+    """SIGTERM (``kill``, a job scheduler's time limit) unwinds like Ctrl-C, so every temporary
+    file and folder of the output policy is removed on the way out. Returns the previous
+    handler (None when signals cannot be set here, e.g. outside the main thread)."""
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        return signal.signal(signal.SIGTERM, interrupt)
+    except (ValueError, OSError):
+        return None
 
 
 def _message(err: BaseException) -> str:

@@ -1,0 +1,328 @@
+"""Bad recordings through `efam calibrate` and `efam diagnose` (and `read_csv`): every one ends in a
+clear error naming the file, line and column or the failed plausibility check, with no traceback,
+the input byte-identical and no file written."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from _robust import csv_text, run_bad, run_cli
+
+from efam_mujoco.calibrate.synth import synthesize
+from efam_mujoco.musclefile import load_muscle
+from efam_mujoco.recordings import (
+    CHECKS,
+    PlausibilityError,
+    RecordingError,
+    check_plausibility,
+    decimate,
+    enforce_plausibility,
+    read_csv,
+)
+
+HEADER = "time_s,length_m,pressure_kPa,force_N"
+
+
+@functools.lru_cache
+def good_rows() -> np.ndarray:
+    """FAM1 on the paper's protocol (five isobaric strokes, one file), push positive, kPa."""
+    recs = synthesize(load_muscle("FAM1"), rate_Hz=5.0)
+    t0 = 0.0
+    rows = []
+    for r in recs:
+        t = r.time_s - r.time_s[0] + t0
+        rows.append(np.column_stack([t, r.length_m, r.pressure_Pa / 1e3, r.force_N]))
+        t0 = t[-1] + 1.0
+    return np.vstack(rows)
+
+
+def good_text() -> str:
+    return csv_text(good_rows(), HEADER)
+
+
+def with_row(n: int, replacement: str) -> str:
+    lines = good_text().splitlines()
+    lines[n] = replacement
+    return "\n".join(lines) + "\n"
+
+
+def row(n: int, time=None, length=None, pressure=None, force=None) -> str:
+    """Line ``n`` (1 = header) of the good file with some fields replaced by the given text."""
+    values = [f"{v:.9g}" for v in good_rows()[n - 2]]
+    for i, given in enumerate((time, length, pressure, force)):
+        if given is not None:
+            values[i] = given
+    return with_row(n - 1, ",".join(values))
+
+
+def scaled(column: int, factor: float, header: str = HEADER) -> str:
+    rows = good_rows().copy()
+    rows[:, column] *= factor
+    return csv_text(rows, header)
+
+
+def replaced(column: int, values, header: str = HEADER) -> str:
+    rows = good_rows().copy()
+    rows[:, column] = values
+    return csv_text(rows, header)
+
+
+def displacement(factor: float, unit: str) -> str:
+    rows = good_rows().copy()
+    rows[:, 1] = (rows[:, 1] - load_muscle("FAM1").rest_length_m) * factor
+    return csv_text(rows, f"time_s,displacement_{unit},pressure_kPa,force_N")
+
+
+N = len(good_rows())
+# (id, file content (str or bytes), patterns the message must hold)
+PARSE_CASES = [
+    ("empty file", "", r"no header"),
+    ("only comments", "# nothing\n# here\n", r"no header"),
+    ("header only", HEADER + "\n", r"fewer than 2"),
+    ("one row", HEADER + "\n0,0.17,100,40\n", r"fewer than 2"),
+    ("unit-less pressure", good_text().replace("pressure_kPa", "pressure", 1), r"'pressure' has no unit"),
+    ("unit-less length", good_text().replace("length_m", "length", 1), r"'length' has no unit"),
+    ("unknown unit", good_text().replace("pressure_kPa", "pressure_kpa", 1), r"unknown pressure unit 'kpa'"),
+    ("length in kPa", good_text().replace("length_m", "length_kPa", 1), r"unknown length unit"),
+    ("unknown column", good_text().replace("force_N", "forse_N", 1), r"unknown column 'forse_N'"),
+    ("two force columns", good_text().replace(HEADER, HEADER + ",tension_N", 1), r"both give the force"),
+    ("missing force", good_text().replace(",force_N", "", 1), r"missing a force column|fields"),
+    ("empty header cell", good_text().replace("force_N", "", 1), r"empty header"),
+    ("too many fields", with_row(5, "1,0.17,100,40,5"), r"line 6.*5 fields"),
+    ("too few fields", with_row(5, "1,0.17,100"), r"line 6.*3 fields"),
+    ("empty value", row(6, length=""), r"line 6, column 'length_m': empty"),
+    ("not a number", row(6, pressure="abc"), r"line 6, column 'pressure_kPa': not a number"),
+    ("comma decimal", row(6, length='"0,17"'), r"line 6, column 'length_m': not a number"),
+    ("nan", row(6, pressure="nan"), r"line 6.*not a finite"),
+    ("inf", row(6, force="inf"), r"line 6.*not a finite"),
+    ("-inf", row(6, length="-inf"), r"line 6.*not a finite"),
+    ("1e300 force", row(6, force="1e300"), r"line 6, column 'force_N'.*cannot be physical"),
+    ("1e300 time", row(6, time="1e300"), r"line 6, column 'time_s'.*cannot be physical"),
+    ("1e308 length", row(6, length="1e308"), r"line 6.*cannot be physical"),
+    ("pressure below vacuum", row(6, pressure="-200"), r"line 6, column 'pressure_kPa'.*below -1 atm"),
+    ("duplicate time", row(6, time=f"{good_rows()[3, 0]:.9g}"), r"line 6.*(duplicate time|backwards)"),
+    ("time backwards", row(51, time="0.0"), r"line 51.*backwards"),
+    ("length zero", row(6, length="0"), r"line 6, column 'length_m'.*<= 0"),
+    ("length negative", row(6, length="-0.1"), r"line 6, column 'length_m'.*<= 0"),
+    ("field over 128 KB", row(6, force="4" * 200_000), r"line 6.*longer than"),
+    ("line over 64 KB", with_row(5, "#" + "x" * 70_000), r"line 6.*longer than"),
+    ("NUL byte", row(6, pressure="\x00100"), r"line 6.*(NUL|not a number)"),
+    (
+        "non-UTF-8 byte",
+        row(6, pressure="1\x01").encode().replace(b"\x01", b"\xff", 1),
+        r"line 6, column \d+: byte 0xff is not UTF-8",
+    ),  # fmt: skip
+    (
+        "latin-1 header",
+        ("time_s,length_m,pressure_kPa,force_N,\xb0C\n").encode("latin-1"),
+        r"line 1.*not UTF-8",
+    ),
+    ("UTF-16 file", good_text().encode("utf-16"), r"line 1.*not UTF-8"),
+    ("binary garbage", bytes(range(256)) * 4, r"not UTF-8|NUL|not a CSV|unknown column"),
+    ("unclosed quote", row(6, length='"0.17'), r"line \d+"),
+    ("semicolon separated", good_text().replace(",", ";"), r"unknown column"),
+    (
+        "displacement without unit",
+        good_text().replace("length_m", "displacement", 1),
+        r"'displacement' has no unit",
+    ),
+    (
+        "tension and force",
+        good_text().replace("time_s", "tension_N", 1),
+        r"both give the force|missing a time",
+    ),
+    ("two times", good_text().replace("length_m", "time_ms", 1), r"both give the time"),
+]
+
+PLAUSIBILITY_CASES = [
+    ("length in mm labelled m", scaled(1, 1000.0), "length-unit", r"length_mm"),
+    ("length in cm labelled m", scaled(1, 100.0), "length-unit", r"length_cm"),
+    (
+        "length in m labelled mm",
+        scaled(1, 1e-3, "time_s,length_mm,pressure_kPa,force_N"),
+        "length-unit",
+        r"length_m\b",
+    ),
+    ("displacement mm labelled m", displacement(1000.0, "m"), "length-unit|length-range", r"displacement"),
+    ("pressure Pa labelled kPa", scaled(2, 1000.0), "pressure-range", r"pressure_Pa"),
+    (
+        "pressure kPa labelled Pa",
+        scaled(2, 1.0, "time_s,length_m,pressure_Pa,force_N"),
+        "pressure-deadband",
+        r"pressure_kPa",
+    ),
+    (
+        "pressure psi labelled MPa",
+        scaled(2, 1.0 / 6.894757, "time_s,length_m,pressure_MPa,force_N"),
+        "pressure-range",
+        "",
+    ),
+    ("pressure all in dead band", scaled(2, 0.05), "pressure-deadband", r"dead band"),
+    ("force in mN labelled N", scaled(3, 1000.0), "force-range", r"force_mN"),
+    ("force kN labelled N", scaled(3, 1e-3), "force-dead", r"load cell"),
+    ("dead load cell (constant)", replaced(3, 3.2), "force-dead", r"dead"),
+    ("dead load cell (zero)", replaced(3, 0.0), "force-dead", r"dead"),
+    (
+        "dead load cell (noise)",
+        replaced(3, np.random.default_rng(0).normal(0, 0.3, N)),
+        "force-dead",
+        r"dead",
+    ),
+    ("stuck at two values", replaced(3, np.arange(N) % 2 * 5.0), "force-dead", r"dead"),
+    ("lengths beyond range", replaced(1, np.linspace(0.2, 1.2, N)), "length-range", r"admissible range"),
+    ("lengths too short", replaced(1, np.linspace(0.05, 0.01, N)), "length-range|length-unit", ""),
+    ("far from rest", replaced(1, np.linspace(0.4, 0.7, N)), "rest-length|length-range", r"resting length"),
+    ("vacuum pressures", replaced(2, np.linspace(-60, 400, N)), "pressure-negative", r"below zero"),
+    ("nothing varies", replaced(2, 0.0), "pressure-deadband|force-dead|nothing-varies", ""),
+    ("force sign flipped", scaled(3, -50.0), "force-range", r"beyond what the muscle can produce"),
+]
+
+
+def _write(tmp_path, content, name="rec.csv"):
+    path = tmp_path / name
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    return path
+
+
+@pytest.mark.parametrize("command", ["calibrate", "diagnose"])
+@pytest.mark.parametrize("case, content, pattern", PARSE_CASES, ids=[c[0] for c in PARSE_CASES])
+def test_bad_csv_names_file_line_column(tmp_path, capsys, command, case, content, pattern):
+    path = _write(tmp_path, content)
+    run_bad(
+        [command, path.name, "--muscle", "FAM1", "--json", "out.json"], tmp_path, capsys, "rec.csv", pattern
+    )
+
+
+@pytest.mark.parametrize("command", ["calibrate", "diagnose"])
+@pytest.mark.parametrize(
+    "case, content, checks, pattern", PLAUSIBILITY_CASES, ids=[c[0] for c in PLAUSIBILITY_CASES]
+)
+def test_implausible_recording_is_an_error_naming_the_check(
+    tmp_path, capsys, command, case, content, checks, pattern
+):
+    path = _write(tmp_path, content)
+    err = run_bad([command, path.name, "--muscle", "FAM1", "--json", "out.json"], tmp_path, capsys,
+                  r"rec\.csv", rf"\[({checks})\]", "--allow")  # fmt: skip
+    if pattern:
+        assert __import__("re").search(pattern, err), err
+
+
+def test_tension_only_on_pushing_data(tmp_path, capsys):
+    path = _write(tmp_path, good_text())
+    for command in ("calibrate", "diagnose"):
+        run_bad(
+            [command, path.name, "--muscle", "FAM1", "--tension-only"], tmp_path, capsys, r"\[tension-only\]"
+        )
+
+
+def test_allow_turns_an_error_into_a_named_warning():
+    recs = [read_csv_text(scaled(3, 1000.0))]
+    muscle = load_muscle("FAM1")
+    findings = check_plausibility(recs, muscle)
+    assert {f.check for f in findings} == {"force-range"}
+    with pytest.raises(PlausibilityError, match=r"\[force-range\].*--allow force-range"):
+        enforce_plausibility(findings)
+    told = []
+    enforce_plausibility(findings, allow=["force-range"], warn=told.append)
+    assert told and told[0].startswith("warning [force-range]:")
+    with pytest.raises(ValueError, match="unknown check 'bogus'"):
+        enforce_plausibility(findings, allow=["bogus"])
+
+
+def read_csv_text(text, tmp=None):
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "r.csv"
+        path.write_text(text)
+        return read_csv(path)
+
+
+def test_good_recording_has_no_findings_and_bom_is_read():
+    muscle = load_muscle("FAM1")
+    assert check_plausibility([read_csv_text(good_text())], muscle) == []
+    with_bom = read_csv_text("\ufeff" + good_text())
+    assert with_bom.meta["columns"][0] == "time_s"
+    assert len(with_bom) == N
+
+
+@pytest.mark.parametrize(
+    "flags, pattern",
+    [
+        (["--allow", "bogus"], r"invalid choice: 'bogus'"),
+        (["--rated-pressure-kPa", "0"], r"--rated-pressure-kPa must be in"),
+        (["--rated-pressure-kPa", "-5"], r"--rated-pressure-kPa must be in"),
+        (["--rated-pressure-kPa", "nan"], r"--rated-pressure-kPa must be in"),
+        (["--rated-pressure-kPa", "inf"], r"--rated-pressure-kPa must be in"),
+        (["--rated-pressure-kPa", "abc"], r"invalid float value"),
+        (["--max-samples", "10"], r"--max-samples must be at least 1000"),
+        (["--max-samples", "1.5"], r"invalid int value"),
+        (["--on-bad-rows", "ignore"], r"invalid choice"),
+        (["--stress", "ogden"], r"invalid choice"),
+        (["--rated", "600"], r"unrecognized arguments: --rated"),
+        (["--max", "5000"], r"unrecognized arguments: --max"),
+        (["--on-bad", "drop"], r"unrecognized arguments: --on-bad"),
+        (["--tension"], r"unrecognized arguments: --tension"),
+        (["--muscle", "FAM3"], r"neither a preset"),
+    ],
+)
+@pytest.mark.parametrize("command", ["calibrate", "diagnose"])
+def test_bad_flags(tmp_path, capsys, command, flags, pattern):
+    path = _write(tmp_path, good_text())
+    argv = [command, path.name, "--muscle", "FAM1", *flags]
+    if command == "diagnose" and flags[0] == "--stress":
+        pattern = r"unrecognized arguments: --stress"
+    run_bad(argv, tmp_path, capsys, pattern)
+
+
+def test_missing_and_folder_inputs(tmp_path, capsys):
+    (tmp_path / "folder.csv").mkdir()
+    for command in ("calibrate", "diagnose"):
+        run_bad([command, "nope.csv", "--muscle", "FAM1"], tmp_path, capsys, r"nope\.csv: cannot open")
+        run_bad([command, "folder.csv", "--muscle", "FAM1"], tmp_path, capsys, r"folder\.csv: is a folder")
+
+
+def test_drop_policy_still_names_the_rows(tmp_path, capsys):
+    text = row(6, pressure="abc")
+    _write(tmp_path, text)
+    code, out, err = run_cli(
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--stress", "linear", "--no-heldout", "--on-bad-rows", "drop"],
+        tmp_path, capsys,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "dropped 1 bad row(s): line 6 (pressure_kPa: not a number: 'abc')" in err
+
+
+def test_decimation_rule_and_same_mode_on_long_files(tmp_path, capsys):
+    """A long file is decimated by a stride (documented) and calibrate still sees isobaric
+    strokes: the mode does not switch with the file's length."""
+    recs = [read_csv_text(good_text())]
+    kept, note = decimate(recs, 1000)
+    k = -(-N // 1000)
+    assert len(kept[0]) == len(range(0, N, k)) and f"every {k}th sample" in note
+    assert np.array_equal(kept[0].time_s, recs[0].time_s[::k])
+    assert decimate(recs, 10**6) == (recs, "")
+    rows = good_rows()
+    span = rows[-1, 0] + 1.0
+    tiled = np.vstack([rows + [i * span, 0, 0, 0] for i in range(12)])
+    (tmp_path / "long.csv").write_text(csv_text(tiled, HEADER))
+    (tmp_path / "short.csv").write_text(good_text())
+    modes = []
+    for name, extra in (("short.csv", []), ("long.csv", ["--max-samples", "2000"])):
+        code, out, err = run_cli(["calibrate", name, "--muscle", "FAM1", "--stress", "linear", "--no-heldout", *extra],
+                                 tmp_path, capsys)  # fmt: skip
+        assert code == 0, err
+        modes.append(out.split("treated as ")[1].splitlines()[0])
+        assert ("decimated" in err) == bool(extra)
+    assert modes[0] == modes[1] and modes[0].startswith("isobaric strokes at 5")
+
+
+def test_reader_errors_are_recording_errors(tmp_path):
+    for _case, content, pattern in PARSE_CASES[:12]:
+        path = _write(tmp_path, content)
+        with pytest.raises(RecordingError, match=pattern):
+            read_csv(path)
+    assert set(CHECKS) >= {"length-unit", "pressure-range", "force-dead", "tension-only"}
