@@ -64,6 +64,8 @@ PLAUSIBLE = {
     "pressure": (0.0, 10e6),  # a dead band up to 10 MPa
     "angle": (0.0, 3.141592653589793 / 2),
 }
+#: No stress-law coefficient of a rubber bladder comes near this (1 TPa, stiffer than diamond).
+MAX_COEFFICIENT = 1e12
 #: Pressures at which a muscle file's model must give a finite force at every admissible length.
 CHECK_PRESSURES_PA = (0.0, 50e3, 200e3, 500e3, 1e6)
 
@@ -363,6 +365,12 @@ def stress_from_document(doc: dict, label: str, law: str | None = None) -> Stres
         )
     for other, coefficients in block["laws"].items():  # every law in the file must be readable
         StressLaw.from_dict(other, coefficients, where=f"{label}: stress law '{other}'")
+        for key, value in coefficients.items():
+            if abs(value) > MAX_COEFFICIENT:
+                raise MuscleFileError(
+                    f"{label}: stress law '{other}': coefficient '{key}' = {value:g} cannot be physical "
+                    f"(|value| above {MAX_COEFFICIENT:g}; a bladder's moduli are MPa)"
+                )
     return StressLaw.from_dict(name, block["laws"][name], where=f"{label}: stress law '{name}'")
 
 

@@ -27,10 +27,11 @@ def load_uncalibrated(source: str):
     doc = dict(doc)
     if not any(key == "deadband" or key.startswith("deadband_") for key in doc):
         doc["deadband_kPa"] = 0.0
-    laws = doc.get("stress", {}).get("laws", {}) if isinstance(doc.get("stress"), dict) else {}
-    if not laws:
+    if "stress" not in doc:  # absent is allowed; present, it is read strictly
         doc["stress"] = {"default": "linear", "laws": {"linear": dict(_PLACEHOLDER_LAW)}}
-    law = "linear" if "linear" in doc["stress"]["laws"] else None
+    stress = doc["stress"]
+    laws = stress.get("laws") if isinstance(stress, dict) else None
+    law = "linear" if isinstance(laws, dict) and "linear" in laws else None
     return muscle_from_document(doc, label, law)
 
 
