@@ -115,7 +115,7 @@ def _file_args(args) -> tuple[dict, dict]:
     names_out = getattr(args, "file_outputs", None) or declared.get("outputs", ())
 
     def flag(name):
-        return name.upper() if name in ("files", "file") else "--" + name.replace("_", "-")
+        return "FILE" if name in ("files", "file") else "--" + name.replace("_", "-")
 
     def existing(value):  # a preset name (FAM1) is not a file
         values = value if isinstance(value, (list, tuple)) else [value]

@@ -1,0 +1,533 @@
+"""The command line as a whole: exact flags, outputs that never overwrite inputs, atomic files and
+report folders, strict JSON, a quiet closed pipe, MuJoCo's log, the Python entry points' unit
+checks. Each bad input ends in a clear error, no traceback, no data loss, no stray file."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import sysconfig
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _robust import csv_text, run_bad, run_cli, snapshot, strict_load
+
+from efam_mujoco import rig
+from efam_mujoco.cli import build_parser, main
+from efam_mujoco.files import (
+    REPORT_MARKER,
+    OutputError,
+    check_outputs,
+    replace_folder,
+    safe_name,
+    save_figure,
+    strict_json,
+    write_json_atomic,
+    write_text_atomic,
+)
+from efam_mujoco.musclefile import load_muscle
+from efam_mujoco.units import PressureUnitWarning, RangeError
+
+ROOT = Path(__file__).resolve().parents[1]
+GOOD_ROWS = [[0.2 * i, 0.17018 + 0.001 * i, 100.0 + 5 * i, 40.0 + 3 * i] for i in range(30)]
+
+
+@pytest.fixture
+def folder(tmp_path):
+    """A user's folder: a recording, a muscle file, and a file named like a naive temporary."""
+    (tmp_path / "rec.csv").write_text(csv_text(GOOD_ROWS))
+    (tmp_path / "muscle.json").write_text(json.dumps(json.loads(load_muscle_text()), indent=1))
+    (tmp_path / "notes.txt").write_text("the user's notes\n")
+    return tmp_path
+
+
+def load_muscle_text() -> str:
+    from importlib import resources
+
+    return resources.files("efam_mujoco.presets").joinpath("fam1.json").read_text()
+
+
+# ----------------------------------------------------------------- exact flag matching
+ABBREVIATIONS = [
+    (["muscle", "FAM1", "--pressures", "75"], "--pressures"),
+    (["muscle", "FAM1", "--press", "75"], "--press"),
+    (["muscle", "FAM1", "--js", "x.json"], "--js"),
+    (["muscle", "FAM1", "--stre", "linear"], "--stre"),
+    (["demo", "--mus", "FAM1"], "--mus"),
+    (["demo", "--o", "x"], "--o"),
+    (["view", "models/rig_free_fam1.xml", "--ch"], "--ch"),
+    (["arm", "--radius", "20", "--xml", "x.xml"], "--radius"),
+    (["arm", "--payload", "1", "--xml", "x.xml"], "--payload"),
+    (["arm", "--pressures", "75", "75", "75"], "--pressures"),
+    (["arm", "--sec", "2", "--xml", "x.xml"], "--sec"),
+    (["arm", "--write", "--xml", "x.xml"], "--write"),
+    (["calibrate", "rec.csv", "--mus", "FAM1"], "--mus|--muscle"),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--fig", "f"], "--fig"),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--keep"], "--keep"),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--base"], "--base"),
+    (["diagnose", "rec.csv", "--muscle", "FAM1", "--rep", "r"], "--rep"),
+    (["diagnose", "rec.csv", "--muscle", "FAM1", "--js", "d.json"], "--js"),
+    (["--mujoco", "log.txt", "muscle", "FAM1"], "--mujoco"),
+    (["--vers"], "--vers"),
+]
+
+
+@pytest.mark.parametrize("argv, flag", ABBREVIATIONS, ids=[" ".join(a) for a, _ in ABBREVIATIONS])
+def test_abbreviated_flags_are_refused(folder, capsys, argv, flag):
+    run_bad(
+        argv,
+        folder,
+        capsys,
+        rf"unrecognized arguments: .*({flag})|required: --muscle|the following|invalid choice",
+    )
+
+
+USAGE = [
+    ([], r"required: COMMAND|the following arguments are required"),
+    (["bogus"], r"invalid choice: 'bogus'"),
+    (["muscle"], r"required: muscle"),
+    (["muscle", "FAM1", "--pressures-kPa"], r"expected at least one argument"),
+    (["muscle", "FAM1", "--pressures-kPa", "abc"], r"invalid float value: 'abc'"),
+    (
+        ["muscle", "FAM1", "--pressures-kPa", "2000"],
+        r"--pressures-kPa: 2000 kPa is outside the rig's control range",
+    ),
+    (["muscle", "FAM1", "--pressures-kPa", "-5"], r"--pressures-kPa: -5 kPa is outside"),
+    (["muscle", "FAM1", "--pressures-kPa", "nan"], r"--pressures-kPa: nan kPa"),
+    (["muscle", "FAM1", "--pressures-kPa", "inf"], r"--pressures-kPa: inf kPa"),
+    (["muscle", "FAM1", "--pressures-kPa", "1e300"], r"--pressures-kPa: 1e\+300 kPa"),
+    (["muscle", "FAM1", "--pressures-kPa", *["100"] * 60], r"at most 50 pressures"),
+    (["muscle", "FAM1", "--stress", "ogden"], r"invalid choice: 'ogden'"),
+    (["muscle", "FAM9"], r"'FAM9' is neither a preset"),
+    (["muscle", "notes.txt"], r"notes\.txt: line 1, column 1: not valid JSON"),
+    (["muscle", "."], r"is a folder"),
+    (["demo", "--muscle", "nope.json"], r"'nope\.json' is neither a preset"),
+    (["demo", "--stress", "sigmoid"], r"no coefficients for stress law 'sigmoid'"),
+    (["view"], r"required: file"),
+    (["view", "nope.xml", "--check"], r"nope\.xml: no such model file"),
+    (["view", "notes.txt", "--check"], r"notes\.txt: the model does not compile"),
+    (["view", "muscle.json", "--check"], r"muscle\.json: the model does not compile"),
+    (["view", "rec.csv", "--check"], r"rec\.csv: the model does not compile"),
+    (["calibrate", "rec.csv"], r"required: --muscle"),
+    (["calibrate", "--muscle", "FAM1"], r"required: FILE"),
+    (["diagnose", "rec.csv"], r"required: --muscle"),
+    (["arm", "--sections", "0", "--xml", "x.xml"], r"--sections must be >= 1"),
+    (["arm", "--muscles-per-section", "2", "--xml", "x.xml"], r"--muscles-per-section"),
+    (["arm", "--muscle", "FAM1", "FAM2", "--xml", "x.xml"], r"--muscle: give 1 muscle"),
+    (["arm", "--orientation", "sideways"], r"invalid choice: 'sideways'"),
+    (["arm", "--disks", "many"], r"invalid int value"),
+    (["arm", "--pressures-kPa", "100", "100"], r"--pressures-kPa: need 3"),
+    (["arm", "--pressures-kPa", "100", "100", "-1"], r"--pressures-kPa: need 3 finite pressures >= 0"),
+]
+
+
+@pytest.mark.parametrize("argv, pattern", USAGE, ids=[" ".join(a)[:60] or "nothing" for a, _ in USAGE])
+def test_usage_errors_name_the_flag(folder, capsys, argv, pattern):
+    run_bad(argv, folder, capsys, pattern)
+
+
+# ------------------------------------------------------------- outputs never overwrite inputs
+OVERWRITES = [
+    (
+        ["muscle", "muscle.json", "--json", "muscle.json"],
+        r"--json muscle\.json would overwrite the input --muscle",
+    ),
+    (["muscle", "muscle.json", "--json", "./sub/../muscle.json"], r"would overwrite the input"),
+    (["muscle", "muscle.json", "--json", "link.json"], r"would overwrite the input"),
+    (
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--out", "rec.csv"],
+        r"--out rec\.csv would overwrite the input FILE rec\.csv",
+    ),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--json", "rec.csv"], r"--json rec\.csv would overwrite"),
+    (
+        ["calibrate", "rec.csv", "--muscle", "muscle.json", "--out", "muscle.json"],
+        r"--out muscle\.json would overwrite the input --muscle",
+    ),
+    (
+        ["calibrate", "rec.csv", "--muscle", "muscle.json", "--json", "muscle.json"],
+        r"would overwrite the input --muscle",
+    ),
+    (
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--out", "x.json", "--json", "x.json"],
+        r"--out and --json are the same file",
+    ),
+    (
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "fig", "--out", "fig_blocked.png"],
+        r"same file",
+    ),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "rec.csv"], r""),
+    (
+        ["diagnose", "rec.csv", "--muscle", "FAM1", "--json", "rec.csv"],
+        r"--json rec\.csv would overwrite the input FILE",
+    ),
+    (
+        ["diagnose", "rec.csv", "--muscle", "muscle.json", "--json", "muscle.json"],
+        r"would overwrite the input --muscle",
+    ),
+    (
+        ["diagnose", "rec.csv", "--muscle", "FAM1", "--report", "."],
+        r"--report \. would overwrite the input FILE rec\.csv",
+    ),
+    (
+        ["diagnose", "rec.csv", "--muscle", "FAM1", "--report", "rec.csv"],
+        r"is a file, not a folder|would overwrite",
+    ),
+    (
+        ["diagnose", "rec.csv", "--muscle", "FAM1", "--report", "userdir"],
+        r"--report userdir exists, is not empty and is not an efam report",
+    ),
+    (
+        ["arm", "--muscle", "muscle.json", "--xml", "muscle.json"],
+        r"--xml muscle\.json would overwrite the input --muscle",
+    ),
+    (
+        ["arm", "--muscle", "muscle.json", "--pressures-kPa", "1", "1", "1", "--json", "muscle.json"],
+        r"would overwrite the input --muscle",
+    ),
+    (["demo", "--muscle", "muscle.json", "--out", "."], r"--out \. would overwrite the input --muscle"),
+    (["demo", "--out", "userdir"], r"--out userdir exists, is not empty and is not an efam report"),
+    (["demo", "--out", "notes.txt"], r"is a file, not a folder"),
+    (
+        ["--mujoco-log", "rec.csv", "view", "rec.csv", "--check"],
+        r"--mujoco-log rec\.csv would overwrite the input FILE",
+    ),
+    (
+        ["--mujoco-log", "muscle.json", "muscle", "muscle.json"],
+        r"--mujoco-log muscle\.json would overwrite the input",
+    ),
+    (["muscle", "FAM1", "--json", "."], r"is a folder|would overwrite"),
+]
+
+
+@pytest.mark.parametrize("argv, pattern", OVERWRITES, ids=[" ".join(a)[:70] for a, _ in OVERWRITES])
+def test_an_output_never_overwrites_an_input(folder, capsys, argv, pattern):
+    (folder / "link.json").symlink_to(folder / "muscle.json")
+    (folder / "sub").mkdir()
+    (folder / "userdir").mkdir()
+    (folder / "userdir" / "precious.csv").write_text("1,2\n")
+    (folder / "rec.csv_blocked.png").write_bytes(b"not really")  # an input-like figure name
+    if argv[-1] == "rec.csv_":
+        argv = ["calibrate", "rec.csv", "rec.csv_blocked.png", "--muscle", "FAM1", "--figures", "rec.csv"]
+        pattern = r"would overwrite the input FILE rec\.csv_blocked\.png"
+    run_bad(argv, folder, capsys, pattern)
+
+
+def test_never_writes_into_site_packages(folder, capsys):
+    site = Path(sysconfig.get_paths()["purelib"])
+    run_bad(["arm", "--write-models", "--models-dir", str(site / "efam_models")], folder, capsys,
+            r"--models-dir .* is inside the installed package")  # fmt: skip
+    run_bad(
+        ["muscle", "FAM1", "--json", str(site / "x.json")], folder, capsys, r"inside the installed package"
+    )
+    assert not (site / "efam_models").exists() and not (site / "x.json").exists()
+    with pytest.raises(OutputError, match="inside the installed package"):
+        rig.write_models(str(site / "efam_models"))
+
+
+# ---------------------------------------------------------------------- atomic outputs
+def test_a_file_named_like_a_temporary_survives(folder, capsys):
+    (folder / "out.json.tmp").write_text("the user's own file\n")
+    code, out, err = run_cli(["muscle", "FAM1", "--json", "out.json"], folder, capsys)
+    assert code == 0, err
+    assert (folder / "out.json.tmp").read_text() == "the user's own file\n"
+    assert strict_load(folder / "out.json")["rows"][0]["pressure_kPa"] == pytest.approx(103.42, abs=0.01)
+    assert not [p for p in os.listdir(folder) if "efam-tmp" in p]
+
+
+def test_failed_write_keeps_the_old_file_and_leaves_nothing(tmp_path):
+    path = write_text_atomic(tmp_path / "out.json", '{"kept": true}\n')
+    with pytest.raises(OutputError, match=r"\$\.rows\[1\]\.force is inf"):
+        write_json_atomic(path, {"rows": [{"force": 1.0}, {"force": float("inf")}]})
+    with pytest.raises(OutputError, match=r"\$\.x is nan"):
+        write_json_atomic(path, {"x": np.float64("nan")})
+    with pytest.raises(TypeError):
+        write_json_atomic(path, {"bad": object()})
+    assert path.read_text() == '{"kept": true}\n'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+def test_strict_json_converts_numpy_and_refuses_non_finite():
+    text = strict_json({"a": np.arange(3), "b": np.float32(1.5), "c": (1, 2), "d": None})
+    assert json.loads(text) == {"a": [0, 1, 2], "b": 1.5, "c": [1, 2], "d": None}
+    for bad in (float("nan"), float("-inf"), np.array([1.0, np.inf]), 1e308 * 10):
+        with pytest.raises(OutputError, match="not a finite number"):
+            strict_json({"v": bad})
+
+
+def test_figure_is_written_whole_or_not_at_all(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [1, 0])
+    path = save_figure(fig, tmp_path / "f.png")
+    old = path.read_bytes()
+    assert old.startswith(b"\x89PNG")
+
+    class Failing:
+        def savefig(self, target, **kw):
+            Path(target).write_bytes(b"\x89PNG half")
+            raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        save_figure(Failing(), path)
+    assert path.read_bytes() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.png"]
+    plt.close(fig)
+
+
+def test_report_folder_is_replaced_as_a_whole(tmp_path):
+    report = tmp_path / "report"
+    with replace_folder(report) as staging:
+        (staging / "a.txt").write_text("first run")
+        (staging / "old_figure.png").write_bytes(b"x")
+    assert (report / REPORT_MARKER).is_file()
+    with pytest.raises(RuntimeError), replace_folder(report) as staging:  # a run that dies midway
+        (staging / "a.txt").write_text("half")
+        raise RuntimeError("killed")
+    assert (report / "a.txt").read_text() == "first run"
+    with replace_folder(report) as staging:
+        (staging / "a.txt").write_text("second run")
+    assert sorted(p.name for p in report.iterdir()) == [REPORT_MARKER, "a.txt"]  # nothing stale
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]  # no temporaries
+
+
+@pytest.mark.parametrize(
+    "name, expected",
+    [
+        ("../../evil", "evil"),
+        ("/etc/passwd", "etc_passwd"),
+        ("..", "muscle"),
+        ("", "muscle"),
+        ("a/b\\c", "a_b_c"),
+        (".hidden", "hidden"),
+        ("FAM1", "FAM1"),
+        ("x" * 300, "x" * 80),
+        ("nul\x00byte", "nul_byte"),
+        ("名前", "muscle"),
+        ("a..b", "a.b"),
+        ("CON", "CON"),
+    ],
+)
+def test_safe_name(name, expected):
+    assert safe_name(name, "muscle") == expected
+
+
+def test_muscle_name_cannot_write_outside_out(folder, capsys):
+    doc = json.loads(load_muscle_text())
+    doc["name"] = "../../escaped"
+    (folder / "evil.json").write_text(json.dumps(doc))
+    code, out, err = run_cli(["demo", "--muscle", "evil.json", "--out", "demo_out"], folder, capsys)
+    assert code == 0, err
+    assert sorted(p.name for p in (folder / "demo_out").iterdir()) == [
+        REPORT_MARKER, "demo.json", "force_stroke_escaped.png",
+    ]  # fmt: skip
+    assert not list(folder.parent.glob("*escaped*")) and not list(folder.glob("*escaped*"))
+    strict_load(folder / "demo_out" / "demo.json")
+
+
+def test_demo_replaces_its_previous_folder_only(folder, capsys):
+    assert run_cli(["demo", "--out", "d"], folder, capsys)[0] == 0
+    (folder / "d" / "stale.png").write_bytes(b"old")
+    assert run_cli(["demo", "--out", "d"], folder, capsys)[0] == 0
+    assert "stale.png" not in os.listdir(folder / "d")
+
+
+def test_check_outputs_api(tmp_path):
+    a = tmp_path / "a.csv"
+    a.write_text("x")
+    with pytest.raises(OutputError, match="--json .*a.csv would overwrite the input FILE"):
+        check_outputs({"--json": a}, {"FILE": [a]})
+    with pytest.raises(OutputError, match="same file"):
+        check_outputs({"--out": tmp_path / "o", "--json": tmp_path / "o"}, {})
+    check_outputs({"--json": tmp_path / "b.json", "--x": None}, {"FILE": [a, None]})
+
+
+# ------------------------------------------------------------------------ the CLI itself
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("efam_mujoco ")
+
+
+def test_every_flag_has_help_and_shows_its_default():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    missing = []
+    for name, command in sub.choices.items():
+        assert command.allow_abbrev is False, name
+        for action in command._actions:
+            if not action.option_strings or action.dest == "help":
+                continue
+            help_text = command.formatter_class(name)._get_help_string(action)
+            if name == "arm" and not action.help:
+                missing.append(f"arm {action.option_strings[0]}")  # arm.py is being rewritten
+                continue
+            assert action.help, f"{name} {action.option_strings[0]} has no help"
+            if action.default not in (None, False, []) and action.nargs != 0:
+                assert "default" in help_text.lower(), f"{name} {action.option_strings[0]}: {help_text}"
+    assert missing in ([], ["arm --orientation"])
+
+
+def test_closed_pipe_ends_quietly(tmp_path):
+    """`efam muscle FAM1 | head`: the reader goes away; no 'Broken pipe' traceback."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "efam_mujoco.cli", "muscle", "FAM1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
+    )  # fmt: skip
+    proc.stdout.close()  # closed before anything is written: every write fails with EPIPE
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0, err
+    assert "Traceback" not in err and "Broken pipe" not in err and "BrokenPipe" not in err, err
+    assert os.listdir(tmp_path) == []
+
+
+def test_sigterm_leaves_no_half_report(tmp_path):
+    """A diagnose killed (SIGTERM) while it works: the previous report stays whole, no
+    temporaries are left."""
+    from efam_mujoco.diagnose.synth import synthesize
+    from efam_mujoco.recordings import write_csv
+
+    rec, _ = synthesize(1, effect="friction", base="fam1")
+    write_csv(tmp_path / "rec.csv", rec)
+    with replace_folder(tmp_path / "rep") as staging:
+        (staging / "report.txt").write_text("previous run\n")
+    before = snapshot(tmp_path)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "efam_mujoco.cli", "diagnose", "rec.csv", "--muscle", "FAM1", "--report", "rep"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path,
+    )  # fmt: skip
+    time.sleep(4.0)
+    proc.send_signal(signal.SIGTERM)
+    err = proc.stderr.read().decode()
+    code = proc.wait(timeout=60)
+    if code == 0:  # finished before the signal (a fast machine): the report was replaced whole
+        assert (tmp_path / "rep" / "report.txt").read_text() != "previous run\n"
+    else:
+        assert code == 130 and "interrupted" in err and "Traceback" not in err, err
+        assert snapshot(tmp_path) == before
+    assert not [p for p in os.listdir(tmp_path) if "efam-" in p]
+
+
+def test_mujoco_log_goes_where_the_user_says(tmp_path, capsys):
+    unstable = tmp_path / "unstable.xml"
+    unstable.write_text(
+        '<mujoco><option timestep="1"/><worldbody><body><joint name="j" type="slide" axis="1 0 0"/>'
+        '<geom size="0.01" mass="1e-9"/></body></worldbody><actuator><motor joint="j" gear="1e12" '
+        'ctrllimited="true" ctrlrange="0 1e12"/></actuator></mujoco>'
+    )
+    err = run_bad(["view", "unstable.xml", "--check"], tmp_path, capsys, r"unstable with every actuator")
+    assert "MuJoCo warning" in err or "unstable" in err
+    code, out, err = run_cli(["--mujoco-log", "log.txt", "view", "unstable.xml", "--check"], tmp_path, capsys)
+    assert code == 2 and "unstable" in err
+    assert "Nan, Inf or huge value" in (tmp_path / "log.txt").read_text()
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_view_check_refuses_a_law_that_overflows(tmp_path, capsys):
+    from efam_mujoco.stress import StressLaw
+
+    muscle = load_muscle("FAM1").with_stress(
+        StressLaw("exponential_decay", (1.479e6, 1.9771, 121646.0, 5000.0))
+    )
+    (tmp_path / "nan.xml").write_text(rig.rig_xml(muscle, rig.RigOptions(mode="free")))
+    run_bad(
+        ["view", "nan.xml", "--check"],
+        tmp_path,
+        capsys,
+        r"nan\.xml: efam\.muscle instance 'muscle'.*not finite",
+    )
+    (tmp_path / "bad.xml").write_text(
+        rig.rig_xml(load_muscle("FAM1")).replace(
+            'key="rest_length_m" value="', 'key="rest_length_m" value="-'
+        )
+    )
+    run_bad(["view", "bad.xml", "--check"], tmp_path, capsys, r"config key 'rest_length_m'.*must be positive")
+
+
+def test_rejected_configs_then_a_good_one(tmp_path):
+    """Plugin init failures free what MuJoCo allocated (no double free, no crash): a model whose
+    second instance is bad is refused with the key named, over and over, then a good one runs."""
+    import mujoco
+
+    from efam_mujoco.plugin import load
+
+    load()
+    muscle = load_muscle("FAM1")
+    good = rig.rig_xml(muscle)
+    instance = good.split("<instance")[1].split("</instance>")[0]
+    second = (
+        "<instance"
+        + instance.replace('name="muscle"', 'name="spare"').replace(
+            'key="deadband_Pa" value="', 'key="deadband_Pa" value="-'
+        )
+        + "</instance>"
+    )
+    bad = good.replace("</instance>", "</instance>\n" + second, 1)
+    for _ in range(200):
+        with pytest.raises(ValueError, match=r"instance 'spare'.*deadband_Pa"):
+            mujoco.MjModel.from_xml_string(bad)
+    model = mujoco.MjModel.from_xml_string(good)
+    data = mujoco.MjData(model)
+    data.ctrl[0] = 300e3
+    mujoco.mj_step(model, data)
+    assert np.isfinite(data.actuator_force).all()
+
+
+# ---------------------------------------------------------- Python entry points and units
+def test_pressure_in_kpa_given_as_pa_warns():
+    muscle = load_muscle("FAM1")
+    for call in (
+        lambda: muscle.blocked_push(300),
+        lambda: muscle.blocked_tension([0, 300]),
+        lambda: muscle.free_length(500),
+        lambda: rig.stroke_forces(muscle, 300, [muscle.rest_length_m]),
+    ):
+        with pytest.warns(PressureUnitWarning, match=r"300 Pa|500 Pa"):
+            call()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        muscle.blocked_push(300e3)  # Pa: no warning
+        muscle.blocked_push(0.0)
+
+
+def test_saturation_is_never_silent():
+    muscle = load_muscle("FAM1")
+    with pytest.raises(RangeError, match=r"2e\+06 Pa is outside \[0, 1e\+06\] Pa"):
+        rig.stroke_forces(muscle, 2e6, [muscle.rest_length_m])
+    with pytest.raises(RangeError, match="outside"):
+        rig.equilibrium_length(muscle, -5e3)
+    from efam_mujoco.report import compare
+
+    with pytest.raises(RangeError, match="pressures_Pa"):
+        compare(muscle, [300e3, 1.5e6])
+
+
+def test_blocked_force_names_carry_their_sign():
+    muscle = load_muscle("FAM1")
+    p = 300e3
+    assert muscle.blocked_push(p) == pytest.approx(-muscle.blocked_tension(p))
+    assert muscle.blocked_push(p) > 0  # an EFAM pushes
+    assert rig.blocked_push(muscle, p) == pytest.approx(muscle.blocked_push(p), rel=0.005)
+    assert rig.blocked_tension(muscle, p) == pytest.approx(muscle.blocked_tension(p), rel=0.005)
+    with pytest.warns(DeprecationWarning, match="blocked_tension"):
+        assert muscle.blocked_force(p) == muscle.blocked_tension(p)
+    with pytest.warns(DeprecationWarning, match="blocked_push"):
+        assert rig.blocked_force(muscle, p) == rig.blocked_push(muscle, p)
+
+
+def test_muscle_json_is_strict_and_complete(folder, capsys):
+    code, out, err = run_cli(
+        ["muscle", "FAM1", "--json", "table.json", "--pressures-kPa", "0", "1000"], folder, capsys
+    )
+    assert code == 0, err
+    doc = strict_load(folder / "table.json")
+    assert [r["pressure_kPa"] for r in doc["rows"]] == [0.0, 1000.0]
+    assert doc["sign"].startswith("blocked_force_N positive = the muscle pushes")
