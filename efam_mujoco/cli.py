@@ -155,8 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         inputs, outputs = _file_args(args)
         check_outputs(outputs, inputs)
         route_mujoco_log(args.mujoco_log)
-        with warnings.catch_warnings():
-            warnings.simplefilter("default")
+        with warnings.catch_warnings():  # Python's filters; each shown as one line
             warnings.showwarning = _show_warning
             status = int(args.run(args) or 0)
         sys.stdout.flush()

@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import write_text_atomic
 from .units import LENGTH, PRESSURE, QUANTITIES, UnitError, factor, split_unit
 
 
@@ -336,7 +337,7 @@ def read_recordings(
 
 
 def write_csv(path: str | os.PathLike, recording: Recording, *, pressure_unit: str = "kPa") -> Path:
-    """Write ``time_s,length_m,pressure_<unit>,force_N`` atomically (tmp file + rename).
+    """Write ``time_s,length_m,pressure_<unit>,force_N`` atomically (files.write_text_atomic).
 
     Refuses to overwrite the file the recording was read from (input files are never modified).
     """
@@ -345,16 +346,14 @@ def write_csv(path: str | os.PathLike, recording: Recording, *, pressure_unit: s
     if source and Path(source).exists() and path.exists() and path.resolve() == Path(source).resolve():
         raise RecordingError(f"{path}: refusing to overwrite the recording's own input file")
     scale = factor(pressure_unit, "pressure", "write_csv")
-    tmp = path.with_name(path.name + ".tmp")
     rows = np.column_stack(
         [recording.time_s, recording.length_m, recording.pressure_Pa / scale, recording.force_N]
     )
-    with tmp.open("w", newline="") as handle:
-        handle.write(f"time_s,length_m,pressure_{pressure_unit},force_N\n")
-        for t, length, p, f in rows:
-            handle.write(f"{t:.9g},{length:.9g},{p:.9g},{f:.9g}\n")
-    tmp.replace(path)
-    return path
+    if not np.isfinite(rows).all():
+        raise RecordingError(f"{path}: the recording holds non-finite values; nothing written")
+    lines = [f"time_s,length_m,pressure_{pressure_unit},force_N\n"]
+    lines += [f"{t:.9g},{length:.9g},{p:.9g},{f:.9g}\n" for t, length, p, f in rows]
+    return write_text_atomic(path, "".join(lines))  # a unique temporary, then a rename
 
 
 # ------------------------------------------------------------------ physical plausibility

@@ -400,11 +400,16 @@ def test_sigterm_leaves_no_half_report(tmp_path):
     with replace_folder(tmp_path / "rep") as staging:
         (staging / "report.txt").write_text("previous run\n")
     before = snapshot(tmp_path)
+    ready = (
+        "import sys; import efam_mujoco.diagnose; from efam_mujoco.cli import main; "
+        "print('ready', flush=True); sys.exit(main(sys.argv[1:]))"
+    )
     proc = subprocess.Popen(
-        [sys.executable, "-m", "efam_mujoco.cli", "diagnose", "rec.csv", "--muscle", "FAM1", "--report", "rep"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path,
+        [sys.executable, "-c", ready, "diagnose", "rec.csv", "--muscle", "FAM1", "--report", "rep"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
     )  # fmt: skip
-    time.sleep(4.0)
+    assert proc.stdout.readline().strip() == b"ready"  # imports done: main() is about to run
+    time.sleep(1.5)  # inside the diagnosis (several seconds)
     proc.send_signal(signal.SIGTERM)
     err = proc.stderr.read().decode()
     code = proc.wait(timeout=60)

@@ -268,8 +268,13 @@ def test_calibrated_file_reads_back(tmp_path, capsys):
         write_csv(tmp_path / f"r{i}.csv", r)
     code, out, err = run_cli(
         ["calibrate", "r0.csv", "r1.csv", "--muscle", "FAM1", "--stress", "linear", "--no-heldout",
-         "--out", "cal.json"], tmp_path, capsys,
+         "--out", "cal.json", "--json", "summary.json", "--figures", "figs/new/cal"], tmp_path, capsys,
     )  # fmt: skip
     assert code == 0, err
     assert load_muscle(tmp_path / "cal.json").stress.name == "linear"
-    copy.deepcopy(out)
+    json.loads((tmp_path / "summary.json").read_text(), parse_constant=lambda t: 1 / 0)
+    # --figures into a folder that does not exist yet: created, every output written together
+    assert sorted(p.name for p in (tmp_path / "figs" / "new").iterdir()) == [
+        "cal_blocked.png", "cal_stress.png", "cal_strokes.png",
+    ]  # fmt: skip
+    assert "treated as isobaric strokes at 2 pressure levels" in copy.deepcopy(out)
