@@ -39,6 +39,31 @@ DEFAULT_FILE_ARGS = {
     "arm": {"inputs": ("muscle",), "outputs": ("xml", "json", "models_dir")},
 }
 
+
+def _arm_max_pressure_kPa():
+    """The arm's control range top (its actuators' ctrlrange), read from efam_mujoco.arm."""
+    from . import arm
+
+    value = getattr(arm, "MAX_TESTED_PRESSURE_PA", None)
+    return None if value is None else value / 1e3
+
+
+#: Bounds on the values of commands whose module does not check them itself: a size that can
+#: exhaust the machine, or a control MuJoCo would clamp silently (the analytic column would not).
+#: ``dest: (low, high, unit)``; a callable bound is read when the command runs; a flag the
+#: command does not have is skipped.
+ARGUMENT_BOUNDS = {
+    "arm": {
+        "sections": (1, 20, ""),
+        "muscles_per_section": (3, 24, ""),
+        "disks": (1, 40, ""),
+        "radius_mm": (1.0, 500.0, "mm"),
+        "payload_kg": (0.0, 50.0, "kg"),
+        "pressure_lag_s": (0.0, 10.0, "s"),
+        "pressures_kPa": (0.0, _arm_max_pressure_kPa, "kPa"),
+    },
+}
+
 #: Exit status of a bad input (argparse uses 2 too) and of an interrupted run.
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -130,6 +155,27 @@ def _file_args(args) -> tuple[dict, dict]:
     return inputs, outputs
 
 
+def check_argument_bounds(args) -> None:
+    """Refuse a value outside :data:`ARGUMENT_BOUNDS` for ``args.command``, naming the flag."""
+    import math
+
+    for dest, (low, high, unit) in ARGUMENT_BOUNDS.get(args.command, {}).items():
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        high = high() if callable(high) else high
+        if high is None:
+            continue
+        for v in value if isinstance(value, (list, tuple)) else [value]:
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and low <= v <= high):
+                flag = "--" + dest.replace("_", "-")
+                u = f" {unit}" if unit else ""
+                raise ValueError(
+                    f"{flag}: {v:g}{u} is outside {low:g} .. {high:g}{u}"
+                    + (" (the actuators' control range: MuJoCo would clamp it)" if unit == "kPa" else "")
+                )
+
+
 def _quiet_broken_pipe() -> None:
     """After a closed pipe: send what is left for stdout to /dev/null so that the flush at exit
     does not raise again (the recipe in Python's signal documentation)."""
@@ -154,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         inputs, outputs = _file_args(args)
         check_outputs(outputs, inputs)
+        check_argument_bounds(args)
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line
             warnings.showwarning = _show_warning

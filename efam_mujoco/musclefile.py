@@ -21,6 +21,7 @@ derives, which is how a calibration that re-estimated the braid angle from block
 from __future__ import annotations
 
 import json
+import os
 from importlib import resources
 from pathlib import Path
 
@@ -114,6 +115,8 @@ def parse_json_text(data: bytes, label: str) -> object:
 
 def read_document(source: str | Path) -> tuple[dict, str]:
     """The parsed JSON of a preset name or a file path, and a label for messages."""
+    if not isinstance(source, (str, os.PathLike)):
+        raise MuscleFileError(f"a muscle is a preset name or a file path, got {type(source).__name__}")
     key = str(source).lower()
     if key in PRESETS:
         data = resources.files("efam_mujoco.presets").joinpath(f"{key}.json").read_bytes()
@@ -126,6 +129,8 @@ def read_document(source: str | Path) -> tuple[dict, str]:
             )
         if path.is_dir():
             raise MuscleFileError(f"{path}: is a folder, not a muscle file")
+        if not path.is_file():  # a FIFO or a device would block or never end
+            raise MuscleFileError(f"{path}: not a regular file (a pipe or a device?)")
         label = str(path)
         try:
             size = path.stat().st_size

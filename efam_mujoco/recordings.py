@@ -200,6 +200,8 @@ def read_csv(
     label = str(path)
     if path.is_dir():
         raise RecordingError(f"{label}: is a folder, not a recording file")
+    if path.exists() and not path.is_file():  # a FIFO or a device would block or never end
+        raise RecordingError(f"{label}: not a regular file (a pipe or a device?)")
     try:
         handle = path.open("rb")
     except OSError as err:
@@ -360,6 +362,7 @@ def write_csv(path: str | os.PathLike, recording: Recording, *, pressure_unit: s
 #: Names of the plausibility checks (``efam calibrate/diagnose --allow NAME`` turns one into a
 #: named warning).
 CHECKS = {
+    "time-unit": "sample intervals no bench recorder makes (a time unit mix-up)",
     "length-unit": "lengths a factor of ten or more off the muscle's resting length (a unit mix-up)",
     "length-range": "lengths outside the muscle's admissible range",
     "rest-length": "a recording that never comes near the muscle's resting length",
@@ -378,6 +381,9 @@ DEFAULT_RATED_PRESSURE_PA = 1.0e6
 LENGTH_TOLERANCE = 0.02
 #: A recording must come this close (fraction of the resting length) to the resting length.
 REST_LENGTH_REACH = 0.5
+#: Median sample intervals a bench recorder makes (1 MHz .. one sample a minute).
+MIN_INTERVAL_S, MAX_INTERVAL_S = 1e-6, 60.0
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
 #: Gauge pressures below this are flagged (noise around zero passes).
 NEGATIVE_PRESSURE_PA = -10e3
 
@@ -444,6 +450,15 @@ def check_plausibility(
             _column(rec, "force|tension"),
         )
         median_L = float(np.median(L))
+        tcol = _column(rec, "time")
+        interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
+        if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
+            fits = _unit_that_fits(interval, 0.01, tcol, TIME_UNITS)
+            hint = f"; the numbers fit '{fits}'" if fits else ""
+            findings.append(Finding("time-unit", (
+                f"{src}: column '{tcol}': the median sample interval is {interval:.4g} s; a bench recorder "
+                f"samples every {MIN_INTERVAL_S:g} .. {MAX_INTERVAL_S:g} s{hint}"
+            )))  # fmt: skip
         # lengths: a unit mix-up first (then the other length checks would only repeat it)
         if not 0.1 < median_L / rest < 10:
             if split_unit(lcol)[0] == "displacement":

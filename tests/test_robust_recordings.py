@@ -5,6 +5,7 @@ the input byte-identical and no file written."""
 from __future__ import annotations
 
 import functools
+import os
 
 import numpy as np
 import pytest
@@ -177,6 +178,14 @@ PLAUSIBILITY_CASES = [
     ("vacuum pressures", replaced(2, np.linspace(-60, 400, N)), "pressure-negative", r"below zero"),
     ("nothing varies", replaced(2, 0.0), "pressure-deadband|force-dead|nothing-varies", ""),
     ("force sign flipped", scaled(3, -50.0), "force-range", r"beyond what the muscle can produce"),
+    ("time in ms labelled s", scaled(0, 1000.0), "time-unit", r"time_ms"),
+    ("time in us labelled s", scaled(0, 1e6), "time-unit", r"sample interval"),
+    (
+        "time in min labelled ms",
+        scaled(0, 1.0 / 60e3, "time_ms,length_m,pressure_kPa,force_N"),
+        "time-unit",
+        r"time",
+    ),
 ]
 
 
@@ -280,6 +289,16 @@ def test_bad_flags(tmp_path, capsys, command, flags, pattern):
 
 def test_missing_and_folder_inputs(tmp_path, capsys):
     (tmp_path / "folder.csv").mkdir()
+    os.mkfifo(tmp_path / "pipe.csv")
+    os.mkfifo(tmp_path / "pipe.json")
+    for command in ("calibrate", "diagnose"):
+        run_bad([command, "pipe.csv", "--muscle", "FAM1"], tmp_path, capsys, r"pipe\.csv: not a regular file")
+        run_bad(
+            [command, "folder.csv", "--muscle", "pipe.json"],
+            tmp_path,
+            capsys,
+            r"pipe\.json: not a regular file",
+        )
     for command in ("calibrate", "diagnose"):
         run_bad([command, "nope.csv", "--muscle", "FAM1"], tmp_path, capsys, r"nope\.csv: cannot open")
         run_bad([command, "folder.csv", "--muscle", "FAM1"], tmp_path, capsys, r"folder\.csv: is a folder")
