@@ -642,6 +642,15 @@ def read_for_fit(args, muscle, warn=None) -> list[Recording]:
         raise ValueError(f"--rated-pressure-kPa must be in (0, 100000] kPa, got {rated:g}")
     if args.max_samples < 1000:
         raise ValueError(f"--max-samples must be at least 1000, got {args.max_samples}")
+    seen: dict = {}
+    for name in args.files:
+        path = Path(name)
+        key = (path.stat().st_dev, path.stat().st_ino) if path.exists() else str(path)
+        if key in seen:
+            raise RecordingError(
+                f"FILE {name}: the same recording as {seen[key]} (given twice, it would count twice)"
+            )
+        seen[key] = name
     recordings = read_recordings(
         args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows, warn=warn
     )

@@ -8,6 +8,8 @@ model, runs one ``mj_forward`` and prints a one-line summary instead of opening 
 from __future__ import annotations
 
 import math
+import os
+import sys
 from pathlib import Path
 
 import mujoco
@@ -133,6 +135,13 @@ def run_view(args) -> int:
         print(check(args.file))
         return 0
     model = compile_model(args.file)
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
+        raise RuntimeError(
+            f"{args.file}: no display to open a window on (DISPLAY is not set); "
+            "'efam view --check FILE' checks a model without one"
+        )
     data = mujoco.MjData(model)
     from mujoco import viewer as mujoco_viewer  # needs a display; imported only to open a window
 

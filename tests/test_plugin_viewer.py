@@ -72,6 +72,7 @@ def test_view_opens_the_viewer_with_the_compiled_model(tmp_path, monkeypatch):
 
     opened = {}
     monkeypatch.setattr(mujoco.viewer, "launch", lambda model, data: opened.update(model=model, data=data))
+    monkeypatch.setenv("DISPLAY", ":0")  # efam view refuses to open a window without a display
     path = write_model(tmp_path, config_xml(load_muscle("FAM2"), "      "))
     assert main(["view", path]) == 0
     assert isinstance(opened["model"], mujoco.MjModel) and opened["model"].nu == 3

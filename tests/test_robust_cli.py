@@ -114,6 +114,12 @@ USAGE = [
     (["view", "notes.txt", "--check"], r"notes\.txt: the model does not compile"),
     (["view", "muscle.json", "--check"], r"muscle\.json: the model does not compile"),
     (["view", "rec.csv", "--check"], r"rec\.csv: the model does not compile"),
+    (["view", "rec.csv"], r"rec\.csv: the model does not compile"),
+    (
+        ["calibrate", "rec.csv", "./rec.csv", "--muscle", "FAM1"],
+        r"FILE \./rec\.csv: the same recording as rec\.csv",
+    ),
+    (["diagnose", "rec.csv", "rec.csv", "--muscle", "FAM1"], r"given twice"),
     (["calibrate", "rec.csv"], r"required: --muscle"),
     (["calibrate", "--muscle", "FAM1"], r"required: FILE"),
     (["diagnose", "rec.csv"], r"required: --muscle"),
@@ -431,6 +437,13 @@ def test_sigterm_leaves_no_half_report(tmp_path):
         assert code == 130 and "interrupted" in err and "Traceback" not in err, err
         assert snapshot(tmp_path) == before
     assert not [p for p in os.listdir(tmp_path) if "efam-" in p]
+
+
+def test_view_without_a_display_says_so(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    model = ROOT / "models" / "rig_free_fam1.xml"
+    run_bad(["view", str(model)], tmp_path, capsys, r"no display to open a window on.*--check")
 
 
 def test_mujoco_log_goes_where_the_user_says(tmp_path, capsys):
