@@ -150,7 +150,9 @@ def _file_args(args) -> tuple[dict, dict]:
     outputs = {flag(n): getattr(args, n, None) for n in names_out}
     if args.command == "arm" and not getattr(args, "write_models", False):
         outputs.pop("--models-dir", None)
-    if getattr(args, "mujoco_log", None):
+    if getattr(args, "mujoco_log", None) is not None:
+        if not args.mujoco_log.strip() or Path(args.mujoco_log).is_dir():
+            raise ValueError(f"--mujoco-log: '{args.mujoco_log}' is not a file name")
         outputs["--mujoco-log"] = args.mujoco_log
     return inputs, outputs
 

@@ -181,6 +181,9 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
     outs = [(label, Path(p)) for label, v in outputs.items() for p in _paths(v)]
     package = installed_package_dirs()
     for i, (label, out) in enumerate(outs):
+        if not str(out).strip() or str(out) in (".", ".."):
+            if label not in ("--out", "--report", "--models-dir"):
+                raise OutputError(f"{label}: '{out}' is not a file name")
         for in_label, source in ins:
             if _same_file(out, source) or (out.is_dir() and _inside(source, out)):
                 raise OutputError(

@@ -219,7 +219,11 @@ OVERWRITES = [
         ["--mujoco-log", "muscle.json", "muscle", "muscle.json"],
         r"--mujoco-log muscle\.json would overwrite the input",
     ),
-    (["muscle", "FAM1", "--json", "."], r"is a folder|would overwrite"),
+    (["muscle", "FAM1", "--json", "."], r"--json: '\.' is not a file name"),
+    (["muscle", "FAM1", "--json", ""], r"--json: '\.' is not a file name"),
+    (["muscle", "FAM1", "--json", "sub"], r"sub: is a folder"),
+    (["--mujoco-log", "sub", "muscle", "FAM1"], r"--mujoco-log: 'sub' is not a file name"),
+    (["--mujoco-log", "", "muscle", "FAM1"], r"--mujoco-log: '' is not a file name"),
 ]
 
 
@@ -350,6 +354,21 @@ def test_muscle_name_cannot_write_outside_out(folder, capsys):
     ]  # fmt: skip
     assert not list(folder.parent.glob("*escaped*")) and not list(folder.glob("*escaped*"))
     strict_load(folder / "demo_out" / "demo.json")
+
+
+def test_a_muscle_name_cannot_break_the_generated_xml(tmp_path):
+    import mujoco
+
+    from efam_mujoco.plugin import load
+
+    load()
+    muscle = load_muscle("FAM1")
+    from dataclasses import replace
+
+    evil = replace(muscle, name="x --> <worldbody><body/></worldbody> <!-- \n y-")
+    xml = rig.rig_xml(evil)
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert model.nbody == rig.build_rig(muscle)[0].nbody
 
 
 def test_demo_replaces_its_previous_folder_only(folder, capsys):
