@@ -345,3 +345,22 @@ def test_reader_errors_are_recording_errors(tmp_path):
         with pytest.raises(RecordingError, match=pattern):
             read_csv(path)
     assert set(CHECKS) >= {"length-unit", "pressure-range", "force-dead", "tension-only"}
+
+
+def test_one_long_file_does_not_turn_short_files_strokes_into_ramps():
+    """Pooled with one recording 200 times longer, the short recordings' isobaric strokes are
+    still pressure levels (a level may hold 1 % of its own recording, not only of the pool)."""
+    from efam_mujoco.calibrate.data import pool
+    from efam_mujoco.recordings import Recording
+
+    recs = synthesize(load_muscle("FAM1"), rate_Hz=5.0)
+    long = recs[-1]
+    reps = 200
+    tiled = Recording(
+        np.arange(len(long) * reps) * 0.2, np.tile(long.length_m, reps), np.tile(long.pressure_Pa, reps),
+        np.tile(long.force_N, reps),
+    )  # fmt: skip
+    samples = pool([*recs[:-1], tiled])
+    assert len(samples.levels_Pa) == 5
+    assert np.allclose(np.sort(samples.levels_Pa), [p.pressure_Pa[0] for p in recs], rtol=1e-9)
+    assert samples.isobaric

@@ -70,32 +70,49 @@ def pool(recordings: list[Recording], tol_Pa: float | None = None) -> Samples:
             raise ValueError(f"{r.meta.get('source', 'recording')}: no samples")
     P = np.concatenate([r.pressure_Pa for r in recordings])
     tol = pressure_tolerance(P) if tol_Pa is None else tol_Pa
-    levels, level = _levels(P, tol)
+    source = np.concatenate([np.full(len(r), i) for i, r in enumerate(recordings)])
+    levels, level = _levels(P, tol, source, np.array([len(r) for r in recordings]))
     return Samples(
         time_s=np.concatenate([r.time_s for r in recordings]),
         length_m=np.concatenate([r.length_m for r in recordings]),
         pressure_Pa=P,
         tension_N=np.concatenate([r.tension_N for r in recordings]),
-        recording=np.concatenate([np.full(len(r), i) for i, r in enumerate(recordings)]),
+        recording=source,
         level=level,
         levels_Pa=levels,
     )
 
 
-def _levels(P: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+#: A pressure level holds at least this many samples, and at least this fraction of the pooled
+#: samples or of its own recording's (so one long file pooled with short ones does not push the
+#: short files' levels under the threshold and turn isobaric strokes into "ramps").
+MIN_LEVEL_SAMPLES = 20
+MIN_LEVEL_FRACTION = 0.01
+
+
+def _levels(P: np.ndarray, tol: float, source=None, lengths=None) -> tuple[np.ndarray, np.ndarray]:
     order = np.argsort(P)
     sorted_p = P[order]
     breaks = np.nonzero(np.diff(sorted_p) > tol)[0] + 1
-    min_count = max(20, int(0.01 * len(P)))
+    min_count = max(MIN_LEVEL_SAMPLES, int(MIN_LEVEL_FRACTION * len(P)))
     levels: list[float] = []
     level = np.full(len(P), -1)
     for chunk in np.split(np.arange(len(P)), breaks):
         values = sorted_p[chunk]
         width = np.percentile(values, 95) - np.percentile(values, 5)
-        if len(chunk) >= min_count and width <= tol:
+        if width <= tol and (len(chunk) >= min_count or _holds_own_level(order[chunk], source, lengths)):
             level[order[chunk]] = len(levels)
             levels.append(float(np.median(values)))
     return np.array(levels), level
+
+
+def _holds_own_level(members: np.ndarray, source, lengths) -> bool:
+    """A cluster that is a level of one of its recordings: at least MIN_LEVEL_FRACTION of that
+    recording's samples (and MIN_LEVEL_SAMPLES)."""
+    if source is None or len(members) < MIN_LEVEL_SAMPLES:
+        return False
+    counts = np.bincount(source[members], minlength=len(lengths))
+    return bool(np.any(counts >= np.maximum(MIN_LEVEL_SAMPLES, MIN_LEVEL_FRACTION * lengths)))
 
 
 def branches(length_m: np.ndarray, direction: float) -> np.ndarray:
