@@ -260,7 +260,7 @@ def read_csv(
         if rest is None:
             raise RecordingError(
                 f"{label}: column '{length_column}' is the change from the resting length; give the "
-                f"resting length (rest_length_m=..., or --muscle / --rest-length-mm on the command line)"
+                "resting length (on the command line --muscle gives it; in Python rest_length_m=...)"
             )
         length = rest + length
     if np.any(length <= 0):
