@@ -193,11 +193,24 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
         for other_label, other in outs[:i]:
             if _same_file(out, other):
                 raise OutputError(f"{other_label} and {label} are the same file ({out}); give two paths")
+        _check_writable_place(label, out)
         for folder in package:
             if _inside(out, folder):
                 raise OutputError(
                     f"{label} {out} is inside the installed package ({folder}); write somewhere else"
                 )
+
+
+def _check_writable_place(label: str, out: Path) -> None:
+    """The nearest existing ancestor of ``out`` must be a folder we may write into: found now,
+    before a long computation, not after other outputs were written."""
+    for parent in [out.parent, *out.parent.parents] if str(out.parent) else []:
+        if parent.exists():
+            if not parent.is_dir():
+                raise OutputError(f"{label} {out}: {parent} is a file, not a folder")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise OutputError(f"{label} {out}: cannot write into {parent} (permission denied)")
+            return
 
 
 def _paths(value) -> list:
@@ -332,7 +345,13 @@ class OutputSet:
         return staged
 
     def commit(self) -> list[Path]:
+        """Write every output (each atomically); the folders are made first, so a bad place fails
+        before any file is written."""
         try:
+            for path in [*self.texts, *self.staged]:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                if path.is_dir():
+                    raise OutputError(f"{path}: is a folder, not a file")
             written = []
             for path, text in self.texts.items():
                 written.append(write_text_atomic(path, text))

@@ -318,8 +318,9 @@ def drop_report(recording: Recording, limit: int = 5) -> str:
         f"line {d['line']}" + (f" ({d['column']}: {d['reason']})" if d["column"] else f" ({d['reason']})")
         for d in dropped[:limit]
     )
-    more = f"; and {len(dropped) - limit} more" if len(dropped) > limit else ""
-    return f"{recording.meta.get('source', 'recording')}: dropped {len(dropped)} bad row(s): {shown}{more}"
+    total = len(dropped) + sum(d.get("more", 0) for d in dropped)  # the list keeps 10 000 at most
+    more = f"; and {total - limit} more" if total > limit else ""
+    return f"{recording.meta.get('source', 'recording')}: dropped {total} bad row(s): {shown}{more}"
 
 
 def read_recordings(

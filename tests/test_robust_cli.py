@@ -222,6 +222,18 @@ OVERWRITES = [
     (["muscle", "FAM1", "--json", "."], r"--json: '\.' is not a file name"),
     (["muscle", "FAM1", "--json", ""], r"--json: '\.' is not a file name"),
     (["muscle", "FAM1", "--json", "sub"], r"sub: is a folder"),
+    (
+        ["muscle", "FAM1", "--json", "notes.txt/x.json"],
+        r"--json notes\.txt/x\.json: notes\.txt is a file, not a folder",
+    ),
+    (
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--out", "o.json", "--figures", "notes.txt/f"],
+        r"--figures .*notes\.txt is a file",
+    ),
+    (
+        ["diagnose", "rec.csv", "--muscle", "FAM1", "--report", "notes.txt/r"],
+        r"--report notes\.txt/r: notes\.txt is a file",
+    ),
     (["--mujoco-log", "sub", "muscle", "FAM1"], r"--mujoco-log: 'sub' is not a file name"),
     (["--mujoco-log", "", "muscle", "FAM1"], r"--mujoco-log: '' is not a file name"),
 ]
