@@ -218,6 +218,7 @@ def replay_rig(recording, muscle: Muscle, effects=()) -> tuple[mujoco.MjModel, m
     pressure through (noise below zero gauge included, as the recording has it), and a filtered
     pressure (``pressure_lag``) starts at the first sample's, as ``effects.lag`` does."""
     P = np.asarray(recording.pressure_Pa, dtype=float)
+    check_pressure_Pa(P, "rig.replay: recording.pressure_Pa")
     options = RigOptions(
         mode="stroke",
         effects=effects,
