@@ -113,6 +113,7 @@ def _version() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``efam`` parser with every command of :data:`COMMAND_MODULES` (exact flags)."""
     parser = argparse.ArgumentParser(
         prog="efam",
         description="Extensile fluidic artificial muscles in MuJoCo (Garbulinski et al. 2021 model).",

@@ -329,10 +329,12 @@ class OutputSet:
         self.staged: dict[Path, Path] = {}
 
     def text(self, path, text: str) -> Path:
+        """Write ``text`` to ``path`` at :meth:`commit`."""
         self.texts[Path(path)] = text
         return Path(path)
 
     def json(self, path, doc) -> Path:
+        """Write ``doc`` as strict JSON to ``path`` at :meth:`commit` (checked now)."""
         return self.text(path, strict_json(doc))
 
     def staging_path(self, path) -> Path:
@@ -364,6 +366,7 @@ class OutputSet:
             self.discard()
 
     def discard(self) -> None:
+        """Remove the staging folder (what was not committed is dropped)."""
         if self._staging is not None:
             shutil.rmtree(self._staging, ignore_errors=True)
             self._staging = None

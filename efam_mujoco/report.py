@@ -20,6 +20,9 @@ PAPER_PRESSURES_PA = tuple(p * PSI_TO_PA for p in (15, 30, 45, 60, 75))  # 103.4
 
 @dataclass(frozen=True)
 class PressureRow:
+    """One pressure of ``efam muscle``: blocked force (push positive, N) and free extension
+    (fraction of the resting length), analytic and MuJoCo."""
+
     pressure_Pa: float
     blocked_analytic_N: float  # push positive
     blocked_mujoco_N: float
@@ -45,6 +48,7 @@ def compare(muscle: Muscle, pressures_Pa=PAPER_PRESSURES_PA) -> list[PressureRow
 
 
 def constants_dict(muscle: Muscle) -> dict:
+    """A muscle's derived constants (SI, units in the keys), for the table and the JSON."""
     return {
         "name": muscle.name,
         "kind": muscle.kind,
@@ -63,6 +67,7 @@ def constants_dict(muscle: Muscle) -> dict:
 
 
 def report_dict(muscle: Muscle, rows: list[PressureRow]) -> dict:
+    """``efam muscle --json``: the constants and each pressure's analytic and MuJoCo values."""
     doc = constants_dict(muscle)
     doc["sign"] = "blocked_force_N positive = the muscle pushes its ends apart"
     doc["rows"] = [
@@ -77,6 +82,7 @@ def report_dict(muscle: Muscle, rows: list[PressureRow]) -> dict:
 
 
 def format_report(muscle: Muscle, rows: list[PressureRow]) -> str:
+    """The table ``efam muscle`` prints."""
     c = constants_dict(muscle)
     lines = [
         f"{muscle.name or 'muscle'} ({c['kind']}), stress law {c['stress_law']}",
@@ -189,6 +195,7 @@ def run_demo(args) -> int:
 
 
 def register_cli(sub) -> None:
+    """Add ``efam muscle`` and ``efam demo`` to the ``efam`` command line."""
     p = sub.add_parser(
         "muscle",
         help="derived constants; blocked force and free extension, analytic vs MuJoCo",

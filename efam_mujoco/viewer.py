@@ -150,6 +150,7 @@ def run_view(args) -> int:
 
 
 def register_cli(sub) -> None:
+    """Add ``efam view`` to the ``efam`` command line."""
     p = sub.add_parser(
         "view",
         help="open a model in MuJoCo's viewer with the efam.muscle plugin loaded",
