@@ -69,11 +69,15 @@ def constants_dict(muscle: Muscle) -> dict:
 def report_dict(muscle: Muscle, rows: list[PressureRow]) -> dict:
     """``efam muscle --json``: the constants and each pressure's analytic and MuJoCo values."""
     doc = constants_dict(muscle)
-    doc["sign"] = "blocked_force_N positive = the muscle pushes its ends apart"
+    doc["sign"] = (
+        "blocked_force_N positive = the muscle pushes its ends apart (blocked_push_N: the same "
+        "values under the package's push/tension naming)"
+    )
     doc["rows"] = [
         {
             "pressure_kPa": r.pressure_Pa / 1e3,
             "blocked_force_N": {"analytic": r.blocked_analytic_N, "mujoco": r.blocked_mujoco_N},
+            "blocked_push_N": {"analytic": r.blocked_analytic_N, "mujoco": r.blocked_mujoco_N},
             "free_extension": {"analytic": r.extension_analytic, "mujoco": r.extension_mujoco},
         }
         for r in rows

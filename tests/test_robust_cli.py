@@ -592,3 +592,5 @@ def test_muscle_json_is_strict_and_complete(folder, capsys):
     doc = strict_load(folder / "table.json")
     assert [r["pressure_kPa"] for r in doc["rows"]] == [0.0, 1000.0]
     assert doc["sign"].startswith("blocked_force_N positive = the muscle pushes")
+    assert doc["rows"][1]["blocked_push_N"] == doc["rows"][1]["blocked_force_N"]
+    assert doc["rows"][1]["blocked_push_N"]["analytic"] > 0  # an EFAM pushes
