@@ -539,9 +539,11 @@ def check_plausibility(
             or len(np.unique(F[: min(len(F), 100000)])) <= 2
             or (expected > 5.0 and spread < 0.02 * expected)
         ):
+            fits = _unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
+            hint = f" (or the numbers fit '{fits}')" if fits and len(np.unique(F[:1000])) > 2 else ""
             findings.append(Finding("force-dead", (
                 f"{src}: column '{fcol}': the force hardly changes (range {spread:.4g} N over {len(F)} samples) "
-                f"while the model expects a range of {expected:.4g} N: a dead or disconnected load cell?"
+                f"while the model expects a range of {expected:.4g} N: a dead or disconnected load cell?{hint}"
             )))  # fmt: skip
         if np.ptp(L) == 0.0 and np.ptp(P) == 0.0:
             findings.append(Finding("nothing-varies", (

@@ -162,7 +162,7 @@ PLAUSIBILITY_CASES = [
     ),
     ("pressure all in dead band", scaled(2, 0.05), "pressure-deadband", r"dead band"),
     ("force in mN labelled N", scaled(3, 1000.0), "force-range", r"force_mN"),
-    ("force kN labelled N", scaled(3, 1e-3), "force-dead", r"load cell"),
+    ("force kN labelled N", scaled(3, 1e-3), "force-dead", r"load cell.*force_kN"),
     ("dead load cell (constant)", replaced(3, 3.2), "force-dead", r"dead"),
     ("dead load cell (zero)", replaced(3, 0.0), "force-dead", r"dead"),
     (
