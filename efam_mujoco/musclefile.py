@@ -118,6 +118,11 @@ def read_document(source: str | Path) -> tuple[dict, str]:
     if not isinstance(source, (str, os.PathLike)):
         raise MuscleFileError(f"a muscle is a preset name or a file path, got {type(source).__name__}")
     key = str(source).lower()
+    if key in PRESETS and Path(source).exists():
+        raise MuscleFileError(
+            f"'{source}' is both a preset and a file here; write ./{source} for the file or "
+            f"{key.upper()} for the preset (and not a file of that name)"
+        )
     if key in PRESETS:
         data = resources.files("efam_mujoco.presets").joinpath(f"{key}.json").read_bytes()
         label = f"preset {key.upper()}"

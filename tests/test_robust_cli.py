@@ -252,6 +252,13 @@ def test_an_output_never_overwrites_an_input(folder, capsys, argv, pattern):
     run_bad(argv, folder, capsys, pattern)
 
 
+def test_a_file_named_like_a_preset_is_not_silently_shadowed(folder, capsys):
+    (folder / "fam1").write_text((folder / "muscle.json").read_text())
+    run_bad(["muscle", "fam1"], folder, capsys, r"'fam1' is both a preset and a file here; write \./fam1")
+    code, out, err = run_cli(["muscle", "./fam1", "--pressures-kPa", "300"], folder, capsys)
+    assert code == 0, err
+
+
 def test_never_writes_into_site_packages(folder, capsys):
     site = Path(sysconfig.get_paths()["purelib"])
     run_bad(["arm", "--write-models", "--models-dir", str(site / "efam_models")], folder, capsys,
