@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import json
-import os
 from pathlib import Path
 
 import numpy as np
 
-from ..files import write_text_atomic
 from . import Diagnosis, _for_recording, diagnose
 from .effects import get
 
@@ -97,7 +94,10 @@ def rig_with_effects(d: Diagnosis, i: int = 0) -> str:
 
 
 def write_json(path, d: Diagnosis) -> Path:
-    return write_text_atomic(path, json.dumps(d.to_json(), indent=1, default=float) + "\n")
+    """The diagnosis as strict JSON (files.write_json_atomic: a non-finite value is an error)."""
+    from ..files import write_json_atomic
+
+    return write_json_atomic(path, d.to_json())
 
 
 # ------------------------------------------------------------------------------- figures
@@ -116,11 +116,12 @@ def figures(d: Diagnosis, directory, prefix: str = "diagnose") -> list[Path]:
 
 
 def _save(fig, path: Path, plt) -> Path:
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    from ..files import save_figure  # a unique temporary, then a rename
+
+    try:
+        return save_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def _residual_map(d: Diagnosis, plt, path: Path) -> Path:
