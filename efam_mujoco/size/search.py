@@ -147,7 +147,7 @@ class SizingResult:
     designs: tuple  # feasible, ranked, best first
     closest: ClosestPoint | None
     relax: tuple
-    candidates: int  # (tube, sleeve) designs evaluated
+    candidates: int  # (tube, sleeve) pairs that fit, searched
     seconds: float
     catalogue: str
     notes: tuple = field(default_factory=tuple)
@@ -293,6 +293,7 @@ def size(
         sleeves = [s for s in catalogue.sleeves if _fits(s, tubing, catalogue)]
         if not sleeves:
             continue
+        candidates += len(sleeves)
         rest = _rest_length(request, tubing, catalogue)
         floor = _theta_floor(tubing, sleeves, rest, catalogue)
         theta = _largest_angle(tubing, rest, floor, request, material, rules)
@@ -301,7 +302,6 @@ def size(
         exact = fast_muscle(tubing, rest, theta, material, rules)
         excess = _excess(_requirements(exact, request))
         for sleeve in sleeves:
-            candidates += 1
             design = _design(tubing, sleeve, rest, theta, excess, request, material, catalogue)
             if design is not None and design.feasible:
                 designs.append(design)
