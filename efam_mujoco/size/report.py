@@ -155,7 +155,12 @@ def envelope_figure(result: SizingResult, path, top: int = 3):
         )
     if result.closest is not None:
         c = result.closest
-        ax.plot([c.stroke], [c.force_N / r.muscles], "rx", ms=12, mew=2, label="closest achievable")
+        if c.muscle is not None:
+            m = c.muscle
+            s = np.linspace(0, max(float(m.free_extension(P)), 0.01), 120)
+            ax.plot(s, m.push(P, m.rest_length_m * (1 + s)), color="tab:red", lw=1.5,
+                    label=f"most capable: {c.tubing.removeprefix('latex ')}, {c.theta_rest_deg:.2f} deg")  # fmt: skip
+        ax.plot([c.stroke], [c.force_N / r.muscles], "rx", ms=12, mew=2, label="closest achievable point")
     per = " per muscle" if r.bundle else ""
     ax.set_xlabel("stroke (extension / resting length)")
     ax.set_ylabel(f"push force{per}, N")

@@ -112,6 +112,8 @@ class Relaxation:
 
     @property
     def message(self) -> str:
+        if self.requirement == "--unguided":
+            return "guide the muscle (drop --unguided: a guide tube, as the paper's test; a search finds a design)"
         verb = "raise" if self.achievable > self.requested else "lower"
         tail = {True: " (a search at that value finds a design)", False: " (not confirmed by a search)"}
         return (
@@ -122,7 +124,7 @@ class Relaxation:
     def to_dict(self) -> dict:
         return {
             "requirement": self.requirement, "requested": self.requested, "achievable": self.achievable,
-            "unit": self.unit, "change_pct": self.change_pct, "confirmed": self.confirmed, "message": self.message,
+            "unit": self.unit, "change_pct": None if math.isnan(self.change_pct) else self.change_pct, "confirmed": self.confirmed, "message": self.message,
         }  # fmt: skip
 
 
@@ -135,9 +137,10 @@ class ClosestPoint:
     force_N: float
     tubing: str
     theta_rest_deg: float
+    muscle: Muscle | None = None  # the closest design's muscle (for the figure; not in JSON)
 
     def to_dict(self) -> dict:
-        return dict(self.__dict__)
+        return {k: v for k, v in self.__dict__.items() if k != "muscle"}
 
 
 @dataclass(frozen=True)
@@ -360,6 +363,8 @@ class _Capability:
     stroke: float  # stroke at the requested force
     blocked_N: float
     fraction: float  # lambda along the line to the request
+    work_ok: bool  # meets the force-at-stroke requirement here
+    blocked_ok: bool  # meets the blocked-force requirement (if any) here
 
 
 def _limits_ok(muscle: Muscle, tubing: Tubing, request: Request, catalogue: Catalogue) -> bool:
@@ -405,9 +410,10 @@ def _capabilities(request: Request, material: Material, catalogue: Catalogue, re
                 lam = min(1.0, (free / m.rest_length_m - 1) / S)
             if request.muscle_blocked_force_N:
                 lam = min(lam, blocked / request.muscle_blocked_force_N)
-            out.append(
-                _Capability(tubing, float(theta), m, float(m.push(P, rest * (1 + S))), stroke, blocked, lam)
-            )
+            force = float(m.push(P, rest * (1 + S)))
+            work_ok = force >= F if F > 0 else free / m.rest_length_m - 1 >= S
+            blocked_ok = blocked >= (request.muscle_blocked_force_N or 0.0)
+            out.append(_Capability(tubing, float(theta), m, force, stroke, blocked, lam, work_ok, blocked_ok))
             break
     return out
 
@@ -421,33 +427,38 @@ def _relax(request: Request, material: Material, catalogue: Catalogue):
     if caps:
         best = max(caps, key=lambda c: c.fraction)
         closest = ClosestPoint(best.fraction, best.fraction * request.stroke, best.fraction * request.force_N,
-                               best.tubing.name, best.theta)  # fmt: skip
+                               best.tubing.name, best.theta, best.muscle)  # fmt: skip
     out = []
 
     def confirm(**kw) -> bool:
         trial = replace(request, **kw)
         return size(trial, material, catalogue, verify=0, relax=False).feasible
 
-    if caps and request.force_N > 0:
-        force = max(c.force_N for c in caps) * M
+    # each requirement alone: its best value among designs that still meet the others
+    held = [c for c in caps if c.blocked_ok]
+    if held and request.force_N > 0:
+        force = max(c.force_N for c in held) * M
         if force < request.force_N:
             value = math.floor(force * 0.999 * 10) / 10
             if value > 0:
                 out.append(Relaxation("--force", request.force_N, value, "N",
                                       100 * (value / request.force_N - 1), confirm(force_N=value)))  # fmt: skip
-    if caps:
-        stroke = max(c.stroke for c in caps)
+    if held:
+        stroke = max(c.stroke for c in held)
         if stroke < request.stroke:
             value = math.floor(stroke * 0.999 * 1000) / 1000
             if value > 0:
                 out.append(Relaxation("--stroke", request.stroke, value, "", 100 * (value / request.stroke - 1),
                                       confirm(stroke=value)))  # fmt: skip
-    if caps and request.blocked_force_N:
-        blocked = max(c.blocked_N for c in caps) * M
+    working = [c for c in caps if c.work_ok]
+    if working and request.blocked_force_N:
+        blocked = max(c.blocked_N for c in working) * M
         if blocked < request.blocked_force_N:
             value = math.floor(blocked * 0.999 * 10) / 10
             out.append(Relaxation("--blocked-force", request.blocked_force_N, value, "N",
                                   100 * (value / request.blocked_force_N - 1), confirm(blocked_force_N=value)))  # fmt: skip
+    if request.unguided and not request.bundle:
+        out += _unguided_relaxations(request, material, catalogue, confirm)
     pressure = _pressure_needed(request, material, catalogue)
     if pressure is not None:
         out.append(Relaxation("--pressure", request.pressure_Pa / 1e3, pressure / 1e3, "kPa",
@@ -463,6 +474,31 @@ def _relax(request: Request, material: Material, catalogue: Catalogue):
                                   100 * (value / (request.max_diameter_m * 1e3) - 1),
                                   confirm(max_diameter_m=value / 1e3)))  # fmt: skip
     return closest, out
+
+
+def _unguided_relaxations(request: Request, material: Material, catalogue: Catalogue, confirm) -> list:
+    """For an unguided muscle: guide it, or shorten it until its Euler load carries its blocked
+    force (P_cr scales as 1 / L^2; force per strain does not depend on length)."""
+    from dataclasses import replace
+
+    out = []
+    guided = size(replace(request, unguided=False), material, catalogue, verify=0, relax=False)
+    if guided.feasible:
+        out.append(Relaxation("--unguided", 1.0, 0.0, "", math.nan, True))
+        if request.length_m is not None:
+            rules = catalogue.rules
+            best = None
+            for d in guided.designs:
+                perf = d.performance
+                shorter = d.muscle.rest_length_m * math.sqrt(perf.euler_load_N / perf.blocked_force_N)
+                if shorter >= rules.min_aspect_ratio * d.muscle.rest_diameter_m:
+                    best = shorter if best is None else max(best, shorter)
+            if best is not None and best < request.length_m:
+                value = math.floor(best * 0.98 * 1e3) / 1e3  # whole mm, clear of the cut rounding
+                if value > 0:
+                    out.append(Relaxation("--length", request.length_m, value, "m",
+                                          100 * (value / request.length_m - 1), confirm(length_m=value)))  # fmt: skip
+    return out
 
 
 def _pressure_needed(request: Request, material: Material, catalogue: Catalogue) -> float | None:
