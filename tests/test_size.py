@@ -324,3 +324,54 @@ def test_request_errors_name_the_parameter(kw, message):
     base = dict(stroke=0.5, force_N=10.0, pressure_Pa=400e3)
     with pytest.raises(RequestError, match=message):
         Request(**{**base, **kw})
+
+
+def test_material_from_a_calibrated_muscle_file(tmp_path):
+    from efam_mujoco.musclefile import load_muscle, save_muscle
+
+    path = save_muscle(tmp_path / "my.json", load_muscle("FAM2", "polynomial"))
+    material = Material.from_muscle(str(path))
+    assert material.stress.name == "polynomial" and material.deadband_Pa == pytest.approx(34.47e3)
+    request = Request(stroke=0.5, force_N=40.0, pressure_Pa=400e3, length_m=0.15)
+    mine, default = size(request, material, verify=0), size(request, verify=0)
+    assert mine.feasible and mine.material.source.endswith("(polynomial law)")
+    assert mine.best.performance.force_at_stroke_N >= 40.0
+    # another material, another braid angle for the same tube
+    tube = mine.best.tubing.name
+    other = next(d for d in default.designs if d.tubing.name == tube)
+    assert abs(other.muscle.theta_rest_deg - mine.best.muscle.theta_rest_deg) > 0.01
+
+
+def test_unstable_law_is_named(tmp_path):
+    from efam_mujoco.musclefile import FORMAT
+
+    doc = {
+        "format": FORMAT, "name": "soft", "deadband_kPa": 30.0,
+        "constants": {"rest_length_m": 0.17, "rest_diameter_m": 0.0287, "theta_rest_deg": 12.5,
+                      "bladder_volume_m3": 1.7e-5},
+        # stable on this muscle's strains, softening to instability at larger ones
+        "stress": {"laws": {"polynomial": {"E1_Pa": 1.5e6, "E2": 1.0, "E3_Pa": 0.0, "E4_Pa": -3.5e4}}},
+    }  # fmt: skip
+    path = tmp_path / "soft.json"
+    path.write_text(json.dumps(doc))
+    material = Material.from_muscle(str(path))
+    easy = size(
+        Request(stroke=0.5, force_N=40.0, pressure_Pa=400e3, length_m=0.15), material, verify=0, relax=False
+    )
+    drucker = [c for d in easy.designs for c in d.checks if c.name == "drucker"]
+    assert easy.feasible and drucker and all(c.passed and c.value > 0 for c in drucker)
+    # a long stroke needs small braid angles, whose strains reach where the law softens
+    hard = size(
+        Request(stroke=1.5, force_N=40.0, pressure_Pa=400e3, length_m=0.15), material, verify=0, relax=False
+    )
+    assert not hard.feasible
+    assert any(note.startswith("drucker:") and "not Drucker-stable" in note for note in hard.notes)
+
+
+def test_unguided_request_is_told_to_guide_or_shorten():
+    request = Request(stroke=0.3, force_N=20.0, pressure_Pa=300e3, length_m=0.25, unguided=True)
+    result = size(request, verify=0)
+    relax = {x.requirement: x for x in result.relax}
+    assert not result.feasible and relax["--unguided"].confirmed
+    if "--length" in relax:
+        assert relax["--length"].achievable < 0.25 and relax["--length"].confirmed

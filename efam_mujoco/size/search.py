@@ -310,6 +310,8 @@ def size(
                 designs.append(design)
     designs.sort(key=lambda d: (round(d.excess, 6), d.mass_kg))
     closest, relaxations = None, ()
+    if not designs:
+        notes += _unstable_law_notes(request, material, catalogue)
     if not designs and relax:
         closest, relaxations = _relax(request, material, catalogue)
     if verify and designs:
@@ -325,6 +327,31 @@ def size(
 
         result = _replace(result, bundle=bundle_report(designs[0].muscle, request))
     return result
+
+
+def _unstable_law_notes(request: Request, material: Material, catalogue: Catalogue) -> list[str]:
+    """Why designs could not even be built: the law is not Drucker-stable over their strains."""
+    rules, bad, tubes, message = catalogue.rules, 0, 0, ""
+    for tubing in catalogue.tubings:
+        sleeves = [s for s in catalogue.sleeves if _fits(s, tubing, catalogue)]
+        if not sleeves:
+            continue
+        tubes += 1
+        rest = _rest_length(request, tubing, catalogue)
+        for theta in (_theta_floor(tubing, sleeves, rest, catalogue), THETA_MAX_DEG):
+            try:
+                fast_muscle(tubing, rest, theta, material, rules)
+            except StressLawError as err:
+                bad, message = bad + 1, str(err)
+                break
+            except MuscleError:
+                pass
+    if not bad:
+        return []
+    return [
+        f"drucker: the stress law is not stable over the admissible strains of {bad} of {tubes} tubes' "
+        f"designs, which cannot be built ({message}); use a stable law (--stress) or recalibrate"
+    ]
 
 
 def _with(design: Design, verification) -> Design:
