@@ -28,6 +28,7 @@ import numpy as np  # noqa: E402
 
 from efam_mujoco import rig  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
+from efam_mujoco.progress import progress  # noqa: E402
 from efam_mujoco.size import Material, Request, load_catalogue, size  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "size.json"
@@ -84,7 +85,7 @@ def main() -> None:
     ]
     cases = fixed + [(f"random {i}", random_request(rng)) for i in range(args.requests)]
     rows, checked, failed = [], 0, []
-    for name, request in cases:
+    for name, request in progress(cases, "sizing requests"):
         t0 = time.perf_counter()
         result = size(request, material, catalogue, verify=0)
         seconds = time.perf_counter() - t0

@@ -248,24 +248,8 @@ def test_cli_json_and_figure(tmp_path, capsys):
 
 
 def test_cli_infeasible_exits_1_with_relaxation(capsys):
-    assert (
-        main(
-            [
-                "size",
-                "--stroke",
-                "0.5",
-                "--force",
-                "40",
-                "--pressure",
-                "400",
-                "--max-diameter",
-                "15",
-                "--top",
-                "0",
-            ]
-        )
-        == 1
-    )
+    argv = ["size", "--stroke", "0.5", "--force", "40", "--pressure", "400", "--max-diameter", "15"]
+    assert main(argv) == 1
     out = capsys.readouterr().out
     assert "closest achievable point" in out and "--max-diameter" in out
 
@@ -299,6 +283,7 @@ def test_cli_bad_flags_name_flag_and_unit(extra, message, capsys):
     "extra, message",
     [
         (["--payload", "1"], "--payload (kg) applies to a bundle"),
+        (["--top", "0"], "--top must be >= 1"),
         (["--stress-from", "no_such_muscle.json"], "--stress-from"),
         (["--catalogue", "no_such_catalogue.json"], "catalogue file"),
     ],

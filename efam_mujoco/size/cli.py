@@ -87,7 +87,7 @@ def register_cli(subparsers) -> None:
     p.add_argument("--catalogue", metavar="FILE", default=None,
                    help="a catalogue JSON in the built-in layout (default: the built-in catalogue)")  # fmt: skip
     p.add_argument("--top", metavar="K", type=int, default=3,
-                   help="designs to verify in MuJoCo and draw (default 3)")  # fmt: skip
+                   help="designs to propose: listed, verified in MuJoCo, written and drawn (default 3)")  # fmt: skip
     p.add_argument(
         "--json", metavar="FILE", default=None, help="write the full result as JSON (default: none)"
     )
@@ -101,8 +101,8 @@ def run(args) -> int:
         raise ValueError(
             "--payload (kg) applies to a bundle: add --bundle M, or add the payload's weight to --force"
         )
-    if args.top < 0:
-        raise ValueError(f"--top must be >= 0, got {args.top}")
+    if args.top < 1:
+        raise ValueError(f"--top must be >= 1 (designs proposed), got {args.top}")
     try:
         material = Material.from_muscle(args.stress_from, args.stress)
     except (MuscleFileError, StressLawError) as err:
@@ -120,11 +120,11 @@ def run(args) -> int:
         unguided=args.unguided,
     )
     result = size(request, material, catalogue, verify=args.top)
-    print(report.summary(result))
+    print(report.summary(result, top=args.top))
     if args.json:
-        write_json_atomic(args.json, result.to_dict())
+        write_json_atomic(args.json, result.to_dict(top=args.top))
         print(f"wrote {args.json}")
     if args.figure:
-        report.envelope_figure(result, args.figure, top=max(args.top, 1))
+        report.envelope_figure(result, args.figure, top=args.top)
         print(f"wrote {args.figure}")
     return 0 if result.feasible else 1

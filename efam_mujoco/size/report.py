@@ -11,7 +11,7 @@ def _mm(x):
     return f"{x * 1e3:.1f}"
 
 
-def summary(result: SizingResult, top: int = 5) -> str:
+def summary(result: SizingResult, top: int = 3) -> str:
     """The request, the ranked designs (Table 2 parameters, mass, binding constraint), MuJoCo beside
     the analytic values, the bundle, or the closest point and what to relax."""
     r = result.request
@@ -39,7 +39,9 @@ def summary(result: SizingResult, top: int = 5) -> str:
         if not result.relax:
             lines.append("  no single requirement can be relaxed within the catalogue's limits")
         return "\n".join(lines)
-    lines.append(f"\n{len(result.designs)} feasible designs; the best {min(top, len(result.designs))}:")
+    lines.append(
+        f"\n{len(result.designs)} feasible designs; the best {min(top, len(result.designs))}, proposed:"
+    )
     head = (
         f"{'#':>2} {'tube (bladder)':<26} {'sleeve':<28} {'L_45 mm':>8} {'L_B mm':>7} {'L_rest':>7} "
         f"{'D_rest':>6} {'theta':>6} {'mass g':>7} {'F@stroke N':>10} {'blocked N':>9} {'free':>6}  binding (margin)"

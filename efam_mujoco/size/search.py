@@ -165,6 +165,10 @@ class SizingResult:
         return self.designs[0] if self.designs else None
 
     def to_dict(self, top: int | None = None) -> dict:
+        """JSON-ready (non-finite numbers as null); ``top``: the designs proposed."""
+        return _finite(self._dict(top))
+
+    def _dict(self, top: int | None) -> dict:
         r = self.request
         return {
             "request": {
@@ -175,6 +179,7 @@ class SizingResult:
             "material": self.material.source,
             "catalogue": self.catalogue,
             "feasible": self.feasible,
+            "feasible_designs": len(self.designs),
             "designs": [d.to_dict() for d in self.designs[:top]],
             "closest": self.closest.to_dict() if self.closest else None,
             "relax": [x.to_dict() for x in self.relax],
@@ -183,6 +188,17 @@ class SizingResult:
             "notes": list(self.notes),
             "bundle": self.bundle.to_dict() if self.bundle is not None else None,
         }  # fmt: skip
+
+
+def _finite(value):
+    """NaN and infinities become None, so the JSON stays standard."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 # --------------------------------------------------------------------------------- search
@@ -214,15 +230,20 @@ def _safe_muscle(tubing, rest, theta, material, rules) -> Muscle | None:
         return None
 
 
-def _requirements(muscle: Muscle, request: Request) -> dict[str, float]:
-    """Margin of each requirement (>= 0 met) of a muscle."""
+def _requirements(muscle: Muscle, request: Request, exact: bool = False) -> dict[str, float]:
+    """Margin of each requirement (>= 0 met) of a muscle. A free stroke is met when the muscle
+    still pushes at the stroke (push falls with length); ``exact`` gives its margin in stroke,
+    which needs the free length (a root find, the search's slowest step)."""
     P, rest = request.pressure_Pa, muscle.rest_length_m
     out = {}
     F = request.muscle_force_N
     if F > 0:
         out["force"] = float(muscle.push(P, rest * (1 + request.stroke))) / F - 1
-    else:
+    elif exact:
         out["stroke"] = float(muscle.free_extension(P)) / request.stroke - 1
+    else:
+        scale = max(abs(float(muscle.blocked_force(P))), 1e-9)
+        out["stroke"] = float(muscle.push(P, rest * (1 + request.stroke))) / scale
     if request.muscle_blocked_force_N:
         out["blocked"] = float(-muscle.blocked_force(P)) / request.muscle_blocked_force_N - 1
     return out
@@ -303,7 +324,7 @@ def size(
         if theta is None:
             continue
         exact = fast_muscle(tubing, rest, theta, material, rules)
-        excess = _excess(_requirements(exact, request))
+        excess = _excess(_requirements(exact, request, exact=True))
         for sleeve in sleeves:
             design = _design(tubing, sleeve, rest, theta, excess, request, material, catalogue)
             if design is not None and design.feasible:
