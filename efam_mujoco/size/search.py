@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import brentq
@@ -338,7 +338,9 @@ def size(
     if verify and designs:
         from .verify import verify_design
 
-        designs[:verify] = [_with(d, verify_design(d.muscle, request)) for d in designs[:verify]]
+        designs[:verify] = [
+            replace(d, verification=verify_design(d.muscle, request)) for d in designs[:verify]
+        ]
     result = SizingResult(
         request, material, tuple(designs), closest, tuple(relaxations), candidates,
         time.perf_counter() - t0, catalogue.label, tuple(notes),
@@ -346,7 +348,7 @@ def size(
     if request.bundle and designs:
         from .bundle import bundle_report
 
-        result = _replace(result, bundle=bundle_report(designs[0].muscle, request))
+        result = replace(result, bundle=bundle_report(designs[0].muscle, request))
     return result
 
 
@@ -373,18 +375,6 @@ def _unstable_law_notes(request: Request, material: Material, catalogue: Catalog
         f"drucker: the stress law is not stable over the admissible strains of {bad} of {tubes} tubes' "
         f"designs, which cannot be built ({message}); use a stable law (--stress) or recalibrate"
     ]
-
-
-def _with(design: Design, verification) -> Design:
-    from dataclasses import replace
-
-    return replace(design, verification=verification)
-
-
-def _replace(result: SizingResult, **kw) -> SizingResult:
-    from dataclasses import replace
-
-    return replace(result, **kw)
 
 
 def _design(tubing, sleeve, rest, theta, excess, request, material, catalogue) -> Design | None:
@@ -417,8 +407,6 @@ class _Capability:
 
 def _limits_ok(muscle: Muscle, tubing: Tubing, request: Request, catalogue: Catalogue) -> bool:
     """The limits (not the requirements, not the part-specific checks) hold for this muscle."""
-    from dataclasses import replace
-
     # judged in service up to the free length, whatever stroke was asked
     checks, _ = con.evaluate(muscle, None, tubing, None, replace(request, stroke=1e-9), catalogue)
     skip = {"force_at_stroke", "blocked_force", "max_diameter", "pressure_rating"}
@@ -467,8 +455,6 @@ def _capabilities(request: Request, material: Material, catalogue: Catalogue, re
 
 
 def _relax(request: Request, material: Material, catalogue: Catalogue):
-    from dataclasses import replace
-
     M = request.muscles
     caps = _capabilities(request, material, catalogue, respect_diameter=True)
     closest = None
@@ -527,8 +513,6 @@ def _relax(request: Request, material: Material, catalogue: Catalogue):
 def _unguided_relaxations(request: Request, material: Material, catalogue: Catalogue, confirm) -> list:
     """For an unguided muscle: guide it, or shorten it until its Euler load carries its blocked
     force (P_cr scales as 1 / L^2; force per strain does not depend on length)."""
-    from dataclasses import replace
-
     out = []
     guided = size(replace(request, unguided=False), material, catalogue, verify=0, relax=False)
     if guided.feasible:
@@ -552,8 +536,6 @@ def _unguided_relaxations(request: Request, material: Material, catalogue: Catal
 def _pressure_needed(request: Request, material: Material, catalogue: Catalogue) -> float | None:
     """The lowest pressure (to 1 kPa, within the catalogue's max) at which some design is feasible:
     bisection on the full search (feasibility rises with pressure until a limit binds)."""
-    from dataclasses import replace
-
     hi = catalogue.rules.max_pressure_Pa
     lo = request.pressure_Pa
 
