@@ -360,3 +360,17 @@ def test_unguided_request_is_told_to_guide_or_shorten():
     assert not result.feasible and relax["--unguided"].confirmed
     if "--length" in relax:
         assert relax["--length"].achievable < 0.25 and relax["--length"].confirmed
+
+
+def test_very_long_muscle_is_reported_not_crashed(capsys):
+    # a 5 m muscle rings slowly on the free rig: it may not come to rest, and then it says so
+    assert (
+        main(["size", "--stroke", "0.5", "--force", "10", "--pressure", "400", "--length", "5", "--top", "1"])
+        == 0
+    )
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    assert (
+        "-> not checked: the free or loaded rig did not come to rest" in captured.out
+        or "meets the request" in captured.out
+    )

@@ -76,8 +76,11 @@ def summary(result: SizingResult, top: int = 3) -> str:
                 lines.append(
                     f"{i:>2} {name:<18} {pair.analytic:>12.5g} {pair.mujoco:>12.5g} {pair.relative_difference:>10.1e}"
                 )
-            verdict = "meets" if d.verification.meets_request else "DOES NOT meet"
-            lines.append(f"   -> in MuJoCo the design {verdict} the request (2 % tolerance)")
+            verdict = {True: "meets", False: "DOES NOT meet"}.get(d.verification.meets_request)
+            if verdict is None:
+                lines.append("   -> not checked: the free or loaded rig did not come to rest within 60 s")
+            else:
+                lines.append(f"   -> in MuJoCo the design {verdict} the request (2 % tolerance)")
     if result.bundle is not None:
         b = result.bundle
         lines.append(
