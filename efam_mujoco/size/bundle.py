@@ -151,12 +151,19 @@ def bundle_report(muscle: Muscle, request: Request) -> BundleReport:
 
     loaded = arm.ArmSpec(**common, orientation="horizontal", payload_kg=request.payload_kg)
     straight = np.array([0.0, 0.0, arc])
-    ref_loaded, _, _ = _reference(loaded, equal)
-    sim_loaded, _, _, _, ok = _simulate(loaded, equal)
-    settled &= ok
-    deflection = Pair(
-        float(np.linalg.norm(ref_loaded - straight)), float(np.linalg.norm(sim_loaded - straight))
-    )
+    try:
+        ref_deflection = float(np.linalg.norm(_reference(loaded, equal)[0] - straight))
+    except StaticsError as err:
+        ref_deflection = math.nan
+        notes.append(f"payload: no constant-curvature equilibrium ({err})")
+    try:
+        sim_loaded, _, _, _, ok = _simulate(loaded, equal)
+        settled &= ok
+        sim_deflection = float(np.linalg.norm(sim_loaded - straight))
+    except FloatingPointError as err:
+        sim_deflection = math.nan
+        notes.append(f"payload: MuJoCo diverged ({err})")
+    deflection = Pair(ref_deflection, sim_deflection)
     if not settled:
         notes.append(f"MuJoCo had not come to rest within {SETTLE_S:g} s in every case")
     return BundleReport(
