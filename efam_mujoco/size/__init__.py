@@ -10,8 +10,9 @@ from .catalogue import Catalogue, CatalogueError, load_catalogue
 from .cli import register_cli
 from .constraints import Check, Performance
 from .design import Material
+from .relax import ClosestPoint, Relaxation
 from .request import Request, RequestError
-from .search import ClosestPoint, Design, Relaxation, SizingResult, size
+from .search import Design, SizingResult, size
 
 __all__ = [
     "Catalogue",
