@@ -31,6 +31,7 @@ COMMAND_MODULES = (
     "efam_mujoco.arm",
     "efam_mujoco.calibrate",
     "efam_mujoco.diagnose",
+    "efam_mujoco.size",
 )
 
 #: Input and output arguments of commands whose module does not declare them itself
