@@ -116,7 +116,7 @@ def performance(muscle: Muscle, request: Request, catalogue: Catalogue) -> Perfo
     ez, ec = muscle.strains(lengths)
     return Performance(
         force_at_stroke_N=float(muscle.push(P, rest * (1 + request.stroke))),
-        blocked_force_N=float(-muscle.blocked_force(P)),
+        blocked_force_N=float(muscle.blocked_push(P)),
         free_stroke=free / rest - 1.0,
         stroke_at_force=stroke_at_force(muscle, P, request.muscle_force_N, free),
         max_strain=float(max(np.abs(ez).max(), np.abs(ec).max())),

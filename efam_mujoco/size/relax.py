@@ -113,7 +113,7 @@ def _capabilities(request: Request, material: Material, catalogue: Catalogue, re
                 continue
             free = float(m.free_length(P))
             stroke = con.stroke_at_force(m, P, F, free)
-            blocked = float(-m.blocked_force(P))
+            blocked = float(m.blocked_push(P))
 
             def gap(lam, m=m):
                 return float(m.push(P, m.rest_length_m * (1 + lam * S))) - lam * F

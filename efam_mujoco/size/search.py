@@ -198,10 +198,10 @@ def _requirements(muscle: Muscle, request: Request, exact: bool = False) -> dict
     elif exact:
         out["stroke"] = float(muscle.free_extension(P)) / request.stroke - 1
     else:
-        scale = max(abs(float(muscle.blocked_force(P))), 1e-9)
+        scale = max(abs(float(muscle.blocked_push(P))), 1e-9)
         out["stroke"] = float(muscle.push(P, rest * (1 + request.stroke))) / scale
     if request.muscle_blocked_force_N:
-        out["blocked"] = float(-muscle.blocked_force(P)) / request.muscle_blocked_force_N - 1
+        out["blocked"] = float(muscle.blocked_push(P)) / request.muscle_blocked_force_N - 1
     return out
 
 

@@ -101,7 +101,7 @@ def verify_design(muscle: Muscle, request: Request) -> Verification:
     return Verification(
         P,
         Pair(float(muscle.push(P, stroke_length)), float(at_stroke_mj)),
-        Pair(float(-muscle.blocked_force(P)), float(blocked_mj)),
+        Pair(float(muscle.blocked_push(P)), float(blocked_mj)),
         Pair(free_length / rest - 1.0, float(free_mj)),
         Pair(analytic_stroke, float(loaded_mj)),
         meets,
