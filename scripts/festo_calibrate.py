@@ -66,7 +66,7 @@ from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle, MuscleError  # noqa: E402
 from efam_mujoco.progress import progress  # noqa: E402
 from efam_mujoco.recordings import Recording, read_csv  # noqa: E402
-from efam_mujoco.stress import LAW_NAMES, StressLaw, StressLawError  # noqa: E402
+from efam_mujoco.stress import LAW_NAMES, LAWS, StressLaw, StressLawError  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from shared_data import festo_dir  # noqa: E402
@@ -186,6 +186,14 @@ def fold_data(group: dict, held_out: str | None):
     return train, test
 
 
+def choose_law(rms_by_law: dict[str, float]) -> str:
+    """The law with the lowest RMS; within ``TIE_REL`` of it, the one with the fewest coefficients
+    (then the order of LAW_NAMES): a tie is not decided by rounding noise."""
+    best = min(rms_by_law.values())
+    tied = [law for law, value in rms_by_law.items() if value <= best * (1 + TIE_REL)]
+    return min(tied, key=lambda law: (len(LAWS[law].params), LAW_NAMES.index(law)))
+
+
 def calibrate_group(label: str, group: dict, laws, tick) -> dict:
     """Every law on all files, and per held-out file on the rest; ``tick()`` after each fit."""
     inner = INNER_DIAMETER_M[group["type"]]
@@ -228,7 +236,7 @@ def calibrate_group(label: str, group: dict, laws, tick) -> dict:
                     "seconds": fold[law]["seconds"],
                 }
         else:
-            chosen = min(laws, key=lambda law: (fold[law]["train_rms_N"], law))  # training data only
+            chosen = choose_law({law: fold[law]["train_rms_N"] for law in laws})  # training data only
             out["folds"][held_out] = {
                 "tare_N": float(np.median([off for name, _, off in group["files"] if name != held_out])),
                 "own_zero_N": out["offsets_N"][held_out],
@@ -254,7 +262,7 @@ def calibrate_group(label: str, group: dict, laws, tick) -> dict:
     chosen = pooled(lambda r: r["chosen_law"])
     out["heldout_chosen_law_rms_N"] = chosen
     out["heldout_chosen_law_pct_of_max"] = 100 * chosen / f_max if chosen is not None else None
-    out["best_law_in_sample"] = min(laws, key=lambda law: (out["laws"][law]["rms_N"], law))
+    out["best_law_in_sample"] = choose_law({law: out["laws"][law]["rms_N"] for law in laws})
     out["fit_for_figure"] = out["best_law_in_sample"]
     return out
 
@@ -355,7 +363,7 @@ def compare_published(laws, tick) -> dict:
                 "deadband_kPa": fit.muscle.deadband_Pa / 1e3,
             }
             tick()
-        best = min(laws, key=lambda law: (entry["laws"][law]["max_error_pct_of_max"], law))
+        best = choose_law({law: entry["laws"][law]["max_error_pct_of_max"] for law in laws})
         entry["best_law"] = best
         out[muscle] = entry
     return out

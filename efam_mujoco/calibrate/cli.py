@@ -29,6 +29,7 @@ def load_uncalibrated(source: str):
 
 
 def register_cli(subparsers) -> None:
+    """Add the ``calibrate`` subcommand to the ``efam`` parser."""
     p = subparsers.add_parser(
         "calibrate",
         help="identify a muscle's dead band, braid angle and stress laws from bench recordings",
@@ -62,6 +63,7 @@ def register_cli(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``efam calibrate`` with parsed arguments; returns the exit code."""
     muscle = load_uncalibrated(args.muscle)
     if args.tension_only:
         from dataclasses import replace
