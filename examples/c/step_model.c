@@ -15,6 +15,7 @@
 
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include <mujoco/mujoco.h>
 
@@ -37,6 +38,10 @@ int main(int argc, char** argv) {
   mjModel* m = mj_loadXML(argv[2], NULL, error, sizeof(error));
   if (!m) {
     fprintf(stderr, "cannot load %s: %s\n", argv[2], error);
+    if (strstr(error, "efam.muscle")) {
+      fprintf(stderr, "hint: load the plugin first: mj_loadPluginLibrary() on the path that "
+                      "`efam install-plugin --print-path` prints\n");
+    }
     return 1;
   }
   mjData* d = mj_makeData(m);
