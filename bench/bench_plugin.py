@@ -278,7 +278,7 @@ def main(argv=None) -> int:
             "load_average_1min_before": load_before,
             "load_average_1min_after": os.getloadavg()[0],
         },
-        "settings": vars(args) | {"out": str(args.out)},
+        "settings": vars(args) | {"out": args.out.name},  # no machine path in the results
         "single_thread_steps_per_s": rates,
         "rollout": rollouts,
         "ratios": ratios,
