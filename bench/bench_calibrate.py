@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 from efam_mujoco.calibrate import calibrate, fit_law, paper_baseline, recovery_error, synthesize  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
+from efam_mujoco.progress import progress  # noqa: E402
 from efam_mujoco.stress import LAW_NAMES  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "calibrate.json"
@@ -116,13 +117,14 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     pinned = pin_one_core()
     cases = []
-    for preset in ("FAM1", "FAM2"):
-        for law in TRUTH_LAWS:
-            for seed in range(args.seeds):
-                cases.append(run_case(preset, law, seed))
-                c = cases[-1]
-                print(f"{preset} {law:18s} seed {seed}: calibrate {c['calibrate_all_laws_s']:.2f} s, recovery "
-                      f"{c['recovery_true_geometry_pct']:.3f} % / {c['recovery_calibrated_pct']:.3f} %", flush=True)  # fmt: skip
+    jobs = [
+        (preset, law, seed) for preset in ("FAM1", "FAM2") for law in TRUTH_LAWS for seed in range(args.seeds)
+    ]
+    for preset, law, seed in progress(jobs, "calibration cases", total=len(jobs)):
+        cases.append(run_case(preset, law, seed))
+        c = cases[-1]
+        print(f"{preset} {law:18s} seed {seed}: calibrate {c['calibrate_all_laws_s']:.2f} s, recovery "
+              f"{c['recovery_true_geometry_pct']:.3f} % / {c['recovery_calibrated_pct']:.3f} %", flush=True)  # fmt: skip
     print_tables(cases)
     worst_time = max(c["calibrate_all_laws_s"] for c in cases)
     worst_recovery = max(max(c["recovery_true_geometry_pct"], c["recovery_calibrated_pct"]) for c in cases)

@@ -45,6 +45,7 @@ import efam_mujoco  # noqa: F401  (registers efam.muscle)
 from efam_mujoco import Muscle, load_muscle
 from efam_mujoco.files import write_json_atomic
 from efam_mujoco.plugin import instance_xml, plugin_config
+from efam_mujoco.progress import progress
 
 RESULTS = Path(__file__).resolve().parent / "results" / "plugin.json"
 TIMESTEP = 0.001
@@ -161,7 +162,7 @@ def single_thread(models: dict, steps: int, repeats: int) -> dict[str, float]:
     rates: dict[str, list[float]] = {name: [] for name in models}
     for name, model in models.items():  # warm-up
         steps_per_second(model, datas[name], controls[: steps // 4])
-    for r in range(repeats):
+    for r in progress(range(repeats), "single-thread repeats", total=repeats):
         order = list(models) if r % 2 == 0 else list(reversed(models))  # interleave, alternate order
         for name in order:
             rates[name].append(steps_per_second(models[name], datas[name], controls))
@@ -192,7 +193,7 @@ def threaded(models: dict, nbatch: int, nstep: int, repeats: int) -> dict[str, d
     rates: dict[tuple[str, int], list[float]] = {}
     for name in models:
         rollout_rate(models[name], 2, nbatch, nstep, 1)  # warm-up
-    for _ in range(repeats):
+    for _ in progress(range(repeats), "rollout repeats", total=repeats):
         for name in models:
             for threads in (1, 2):
                 rates.setdefault((name, threads), []).extend(
@@ -277,7 +278,7 @@ def main(argv=None) -> int:
             "load_average_1min_before": load_before,
             "load_average_1min_after": os.getloadavg()[0],
         },
-        "settings": vars(args) | {"out": str(args.out)},
+        "settings": vars(args) | {"out": args.out.name},  # no machine path in the results
         "single_thread_steps_per_s": rates,
         "rollout": rollouts,
         "ratios": ratios,

@@ -32,6 +32,7 @@ COMMAND_MODULES = (
     "efam_mujoco.calibrate",
     "efam_mujoco.diagnose",
     "efam_mujoco.size",
+    "efam_mujoco.plugin.install",
 )
 
 #: Input and output arguments of commands whose module does not declare them itself

@@ -116,6 +116,7 @@ class Geometry:
 
     @property
     def bladder_section_m2(self) -> float:
+        """Cross-section area of the bladder wall (m^2), from its outer and inner diameters."""
         return math.pi * ((self.bladder_outer_diameter_m / 2) ** 2 - (self.bladder_inner_diameter_m / 2) ** 2)
 
     @property
@@ -191,6 +192,8 @@ class Muscle:
     # ---------------------------------------------------------------------- construction
     @classmethod
     def from_geometry(cls, geometry: Geometry, deadband_Pa: float, stress: StressLaw, **kw) -> Muscle:
+        """A muscle from measured :class:`Geometry` (paper Sec. 4.1-4.2), a dead band and a stress law;
+        ``kw``: the other :class:`Muscle` fields (``name``, ``tension_only``...)."""
         return cls(
             rest_length_m=geometry.rest_length_m,
             rest_diameter_m=geometry.rest_diameter_m,
@@ -202,15 +205,19 @@ class Muscle:
         )
 
     def with_stress(self, stress: StressLaw) -> Muscle:
+        """The same muscle with another stress law."""
         return replace(self, stress=stress)
 
     # ------------------------------------------------------------------------- geometry
     @property
     def is_extensile(self) -> bool:
+        """Whether the muscle extends when pressurised: its resting braid angle is below the
+        neutral angle (35.26 deg in this model's convention)."""
         return self.theta_rest_deg < NEUTRAL_BRAID_ANGLE_DEG
 
     @property
     def kind(self) -> str:
+        """``"extensile"`` or ``"contractile"``."""
         return "extensile" if self.is_extensile else "contractile"
 
     def outer_radius(self, length_m):

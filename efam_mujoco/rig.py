@@ -4,12 +4,12 @@ The muscle is a spatial tendon from a site on the base to a site on the plate, d
 ``efam.muscle`` plugin (ctrl = gauge pressure in Pa). The plate moves along +z, away from the
 base, so the tendon length is the muscle length. Three modes:
 
-``stroke``  the plate is a mocap body whose position the test machine prescribes
-            (displacement control, as the MTS strokes the muscle); at the resting length this
-            is the blocked-force test. The load cell reads the muscle's force (push positive).
-``free``    the plate slides freely (gravity off, damped): the muscle finds its free length.
-``loaded``  as free, with a known axial load on the plate: ``load_N`` positive compresses the
-            muscle (a weight on an upright EFAM), so at rest ``push(P, L) = load_N``.
+* ``stroke``: the plate is a mocap body whose position the test machine prescribes
+  (displacement control, as the MTS strokes the muscle); at the resting length this is the
+  blocked-force test. The load cell reads the muscle's force (push positive).
+* ``free``: the plate slides freely (gravity off, damped): the muscle finds its free length.
+* ``loaded``: as free, with a known axial load on the plate: ``load_N`` positive compresses the
+  muscle (a weight on an upright EFAM), so at rest ``push(P, L) = load_N``.
 
 ``rig_xml`` returns the MJCF; ``models/rig_*.xml`` are these for FAM1. The measuring functions
 below build a rig, run MuJoCo and return what a bench test would.
@@ -96,6 +96,8 @@ def actuator_xml(
 
 
 def rig_xml(muscle: Muscle, options: RigOptions = RigOptions()) -> str:
+    """The MJCF of a rig for ``muscle`` in ``options.mode`` (``stroke``, ``free`` or ``loaded``; see the
+    module docstring), with the plugin's config, sensors and any effects switched on."""
     mode = options.mode
     L0 = muscle.rest_length_m
     radius = max(muscle.rest_diameter_m, 0.01)
@@ -168,6 +170,7 @@ def _comment_text(text: str) -> str:
 
 
 def build_rig(muscle: Muscle, options: RigOptions = RigOptions()) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """Compile :func:`rig_xml` (plugin loaded first); returns ``(model, data)``."""
     load_plugin()
     model = mujoco.MjModel.from_xml_string(rig_xml(muscle, options))
     return model, mujoco.MjData(model)

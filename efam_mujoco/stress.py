@@ -136,6 +136,7 @@ LAWS: dict[str, LawSpec] = {
 
 
 def spec(name: str) -> LawSpec:
+    """The :class:`LawSpec` of the law ``name`` (coefficients, bounds); unknown names raise."""
     if name not in LAWS:
         raise StressLawError(f"unknown stress law '{name}' (known: {', '.join(LAW_NAMES)})")
     return LAWS[name]
@@ -180,6 +181,7 @@ class StressLaw:
         return cls(name, tuple(values))
 
     def to_dict(self) -> dict[str, float]:
+        """The coefficients by name, e.g. ``{"E1_Pa": ..., "E2": ...}``."""
         return dict(zip(spec(self.name).params, self.coefficients))
 
     # ----------------------------------------------------------------------- evaluation

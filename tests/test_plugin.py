@@ -455,6 +455,6 @@ def test_plugin_config_round_trips_every_double():
 
 
 def test_missing_library_gives_a_clear_error(monkeypatch):
-    monkeypatch.setattr(efam_plugin, "_LIBRARY_FILE", "libefam_muscle_missing.so")
+    monkeypatch.setattr(efam_plugin, "LIBRARY_FILE", "libefam_muscle_missing.so")
     with pytest.raises(PluginLoadError, match="pip install"):
         efam_plugin.library_path()

@@ -46,6 +46,7 @@ class BlockedForceFit:
     rest_diameter_m: float | None = None
 
     def predict(self, pressure_Pa):
+        """The hinge line's blocked tension (N) at ``pressure_Pa``: slope x max(P - dead band, 0)."""
         return self.slope_N_per_Pa * np.maximum(np.asarray(pressure_Pa, dtype=float) - self.deadband_Pa, 0.0)
 
 

@@ -48,6 +48,7 @@ class Calibration:
 
     @property
     def muscle(self) -> Muscle:
+        """The calibrated muscle with the best law (lowest error)."""
         return self.fits[self.best_law].muscle
 
     def to_json(self) -> dict:
@@ -85,6 +86,7 @@ class Calibration:
 
 
 def resolve_laws(laws) -> tuple[str, ...]:
+    """Law names from ``"all"``/None, one name or a list; an unknown name raises ``ValueError``."""
     if laws in (None, "all"):
         return LAW_NAMES
     names = (laws,) if isinstance(laws, str) else tuple(laws)

@@ -50,6 +50,7 @@ class Samples:
         return len(self.levels_Pa) >= 2 and np.mean(self.level >= 0) >= 0.9
 
     def take(self, mask) -> Samples:
+        """The samples where ``mask`` holds (a boolean or index array); the levels stay."""
         return Samples(
             self.time_s[mask], self.length_m[mask], self.pressure_Pa[mask], self.tension_N[mask],
             self.recording[mask], self.level[mask], self.levels_Pa,
@@ -134,7 +135,7 @@ def branches(length_m: np.ndarray, direction: float) -> np.ndarray:
 
 
 def local_value(x: np.ndarray, y: np.ndarray, at: float, half_width: float) -> float:
-    """Local polynomial fit of y(x) over |x - at| <= half_width, evaluated at ``at``.
+    """Local polynomial fit of y(x) over abs(x - at) <= half_width, evaluated at ``at``.
 
     A quadratic with 6 or more samples (a stroke's start or end is one-sided, where a straight
     line would be biased by the curvature), a straight line with 3-5, NaN with fewer.
@@ -163,6 +164,7 @@ class ComparisonPoints:
     n: int
 
     def take(self, mask) -> ComparisonPoints:
+        """The points where ``mask`` holds (a boolean or index array)."""
         return ComparisonPoints(
             self.pressure_Pa[mask], self.length_m[mask], self.tension_N[mask], self.level[mask],
             self.k[mask], self.recording[mask], self.n,

@@ -90,6 +90,7 @@ def stress_basis(law: str, nonlinear: dict[str, float], eps, P) -> list[np.ndarr
 
 
 def linear_params(law: str) -> tuple[str, ...]:
+    """The coefficients of ``law`` that enter Eq. 2 linearly (solved exactly, not searched)."""
     return tuple(p for p in LAWS[law].params if p not in NONLINEAR[law])
 
 
@@ -123,6 +124,8 @@ class Design:
         return len(self.P)
 
     def columns(self, law: str, nonlinear: dict[str, float]) -> np.ndarray:
+        """The design matrix of ``law``'s linear coefficients (one column each) at fixed non-linear ones:
+        Eq. 2's stress terms, sigma_z a_z - sigma_c a_c, per sample."""
         bz = stress_basis(law, nonlinear, self.ez, self.P)
         bc = stress_basis(law, nonlinear, self.ec, self.P)
         return np.column_stack([z * self.az - c * self.ac for z, c in zip(bz, bc)])
@@ -155,6 +158,7 @@ class LawFit:
 
     @property
     def stress(self) -> StressLaw:
+        """The fitted stress law (the muscle's)."""
         return self.muscle.stress
 
 
@@ -192,6 +196,8 @@ class Problem:
         return clone
 
     def design(self, which: str, deadband_Pa: float) -> Design:
+        """The per-sample geometry of ``which`` samples: ``"fit"`` (reduced), ``"all"`` or ``"points"``
+        (the Eq. 14 comparison points), with the dead band ``deadband_Pa``."""
         s = self.reduced if which == "fit" else self.samples
         if which == "points":
             pts = self.points
@@ -385,29 +391,76 @@ class _Space:
         return [np.array([a, b]) for a in axis for b in axis]
 
 
+#: Costs within this relative distance are a tie: the tie goes to the first grid point (in grid
+#: order), and a local refinement must beat the grid by more than this to be taken. Where the data
+#: cannot tell coefficients apart (e.g. isometric recordings probe a law at a few strains only, so
+#: its cost is flat along a valley to the last bits), the answer is then the same on every machine
+#: and numpy/scipy version instead of wherever rounding noise stopped the optimiser.
+TIE_REL = 1e-9
+
+
+def _first_best(costs: np.ndarray) -> int:
+    """Index of the first cost within :data:`TIE_REL` of the smallest."""
+    return int(np.nonzero(costs <= costs.min() * (1 + TIE_REL))[0][0])
+
+
+def _golden(cost, a: float, b: float, xtol: float = 1e-5) -> tuple[float, float]:
+    """Golden-section minimum of ``cost`` on [a, b]; a near-tie (:data:`TIE_REL`) keeps the left
+    part, so rounding noise on a flat stretch never decides the path."""
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - ratio * (b - a), a + ratio * (b - a)
+    fc, fd = cost(c), cost(d)
+    while b - a > xtol:
+        if fc <= fd * (1 + TIE_REL):
+            b, d, fd = d, c, fc
+            c = b - ratio * (b - a)
+            fc = cost(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + ratio * (b - a)
+            fd = cost(d)
+    return (c, fc) if fc <= fd * (1 + TIE_REL) else (d, fd)
+
+
+def _compass(cost, start: np.ndarray, f0: float, step: float, xtol: float = 1e-5) -> tuple[np.ndarray, float]:
+    """Compass search in the unit square from ``start``: try +-step along each axis in a fixed order,
+    move on an improvement beyond :data:`TIE_REL`, else halve the step. Deterministic."""
+    u, best = np.array(start, dtype=float), float(f0)
+    while step >= xtol:
+        moved = False
+        for axis in range(len(u)):
+            for sign in (-1.0, 1.0):
+                trial = u.copy()
+                trial[axis] = min(max(trial[axis] + sign * step, 0.0), 1.0)
+                if np.array_equal(trial, u):
+                    continue
+                value = cost(trial)
+                if value < best * (1 - TIE_REL):
+                    u, best, moved = trial, value, True
+                    break
+        if not moved:
+            step /= 2.0
+    return u, best
+
+
 def _search(solver: _LinearSolver, law: str) -> tuple[dict[str, float], _Solution]:
-    """Least squares over the whole box: a grid of the non-linear coefficients, then refinement."""
+    """Least squares over the whole box: a grid of the non-linear coefficients, then a local
+    refinement that ties go against (golden section in 1-D, compass search in 2-D; both make
+    their decisions with :data:`TIE_REL`, so the result does not depend on rounding noise)."""
     space = _Space(law)
     if not space.names:
         return {}, solver.solve({})
     grid = space.grid()
     cost = lambda u: solver.solve(space.values(u)).cost  # noqa: E731
     costs = np.array([cost(u) for u in grid])
-    order = np.argsort(costs)
+    i = _first_best(costs)
     if len(space.names) == 1:
-        i = int(order[0])
         a, b = grid[max(i - 1, 0)][0], grid[min(i + 1, len(grid) - 1)][0]
-        best = minimize_scalar(lambda x: cost([x]), bounds=(a, b), method="bounded", options={"xatol": 1e-5})
-        u = np.array([best.x]) if best.fun <= costs[i] else grid[i]
+        x, value = _golden(lambda x: cost([x]), a, b)
+        u = np.array([x]) if value < costs[i] * (1 - TIE_REL) else grid[i]
     else:
-        u, best_cost = grid[int(order[0])], float(costs[order[0]])
-        for i in order[:2]:
-            result = minimize(
-                cost, grid[i], method="Nelder-Mead", bounds=[(0.0, 1.0)] * 2,
-                options={"xatol": 1e-5, "fatol": 1e-9 * costs[i], "maxfev": 150},
-            )  # fmt: skip
-            if result.fun < best_cost:
-                u, best_cost = result.x, float(result.fun)
+        spacing = 1.0 / (round(math.sqrt(len(grid))) - 1)
+        u, _ = _compass(cost, grid[i], float(costs[i]), spacing / 2)
     nonlinear = space.values(u)
     return nonlinear, solver.solve(nonlinear)
 
@@ -452,6 +505,7 @@ def eq14_table(points: ComparisonPoints, model_tension: np.ndarray) -> dict[str,
 
 
 def eq14_value(points: ComparisonPoints, rel_pct: np.ndarray) -> float:
+    """Eq. 14 from per-point relative errors (%): the mean over levels of each level's mean (k > 0)."""
     per_level = [np.mean(rel_pct[(points.level == j) & (points.k > 0)]) for j in np.unique(points.level)]
     per_level = [v for v in per_level if np.isfinite(v)]
     return float(np.mean(per_level)) if per_level else math.nan
@@ -488,6 +542,7 @@ class Eq14:
         self.weight = 100.0 * weight / np.abs(pts.tension_N)
 
     def admissible(self, c) -> bool:
+        """Whether coefficients ``c`` are inside the law's bounds (and, for the polynomial, stable)."""
         for value, (lo, hi, lo_open, hi_open) in zip(c, self.bounds):
             if not math.isfinite(value) or value < lo or value > hi:
                 return False
@@ -498,6 +553,7 @@ class Eq14:
         return True
 
     def model(self, c) -> np.ndarray:
+        """Eq. 2 tension at the comparison points for coefficients ``c``."""
         d = self.design
         nonlinear = {p: c[i] for i, p in enumerate(self.params) if p in NONLINEAR[self.law]}
         P = np.maximum(d.P, 0.0)

@@ -53,6 +53,7 @@ def table4(cal: Calibration) -> str:
 
 
 def baseline_table(ours: dict[str, LawFit], baseline: dict[str, LawFit]) -> str:
+    """A Markdown table: our fit beside the paper's Nelder-Mead procedure, per law (Eq. 14, RMS, time)."""
     lines = [
         "| law | ours: Eq. 14 (%) | ours: RMS (N) | ours: s | Nelder-Mead: Eq. 14 (%) | NM: RMS (N) | NM: s |",
         "|---|---|---|---|---|---|---|",
@@ -69,6 +70,7 @@ def baseline_table(ours: dict[str, LawFit], baseline: dict[str, LawFit]) -> str:
 
 
 def summary(cal: Calibration) -> str:
+    """The text report of a calibration: data, blocked-force fit, each law's errors and coefficients."""
     s = cal.problem.samples
     b = cal.blocked
     rejected = [f"{p / 1e3:.1f} kPa" for p, ok in zip(b.pressure_Pa, b.inlier) if not ok]
@@ -181,6 +183,7 @@ def figure_stress(cal: Calibration, path) -> None:
 
 
 def write_figures(cal: Calibration, prefix) -> list[str]:
+    """Write ``PREFIX_blocked.png``, ``PREFIX_strokes.png`` and ``PREFIX_stress.png``; returns the paths."""
     paths = [f"{prefix}_blocked.png", f"{prefix}_strokes.png", f"{prefix}_stress.png"]
     figure_blocked(cal, paths[0])
     figure_strokes(cal, paths[1])

@@ -65,7 +65,7 @@ def recovery_error(fitted: Muscle, truth: Muscle, pressures_Pa=PAPER_PRESSURES_P
                    stroke_ratio: float = PAPER_STROKE_RATIO, points: int = 200) -> float:  # fmt: skip
     """Largest force error over the tested range, relative to the force range at that pressure.
 
-    For each test pressure p: max over the stroke of |F_fit - F_true| / (max F_true - min F_true),
+    For each test pressure p: max over the stroke of abs(F_fit - F_true) / (max F_true - min F_true),
     the range taken over the same stroke; the result is the largest over pressures. (A plain
     relative error is meaningless where the force crosses zero, which every EFAM stroke does.)
     """

@@ -7,27 +7,41 @@ also switches on effect terms identified by ``efam diagnose`` (``efam_effects.h`
 ``effects`` and ``<effect>.<parameter>``), and ``actuator_dynamics(effects)`` gives the actuator
 attributes ``pressure_lag`` needs.
 
-The library is built from ``efam_muscle.c`` by ``pip install`` (see setup.py). It is not linked
-against ``libmujoco``; its MuJoCo symbols are resolved from the ``libmujoco`` that the ``mujoco``
-package has already loaded, which ``load()`` first makes globally visible.
+The library is built from ``efam_muscle.c`` by ``pip install`` (see setup.py). It is a MuJoCo
+plugin library like MuJoCo's own: it registers ``efam.muscle`` itself when loaded
+(``mjPLUGIN_LIB_INIT``), so it also works without Python: copied into MuJoCo's plugin directory
+(``efam install-plugin``), where ``import mujoco``, ``python -m mujoco.viewer``, dm_control and
+``simulate`` load it, or loaded from C with ``mj_loadPluginLibrary`` (``examples/c``). Whichever
+path loads it first registers it; the others find it registered (once, never twice).
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
-import glob
+import hashlib
 import os
 import sys
 import threading
+import warnings
 
 from ..muscle import Muscle
 from ..stress import LAWS
 
 PLUGIN_NAME = "efam.muscle"
-_LIBRARY_FILE = "efam_muscle.dll" if sys.platform == "win32" else "libefam_muscle.so"
+LIBRARY_FILE = "efam_muscle.dll" if sys.platform == "win32" else "libefam_muscle.so"
 _REBUILD_HINT = (
     "rebuild it with `pip install -e .` (or `pip install .`) in the efam_mujoco source tree; "
     "a C compiler and the mujoco 3.17 wheel (its headers) are needed"
+)
+
+#: What to do when MuJoCo says the plugin is missing (appended to such errors, and in the docs).
+MISSING_PLUGIN_HINT = (
+    "the MuJoCo plugin 'efam.muscle' is not registered in this process. In Python, `import "
+    "efam_mujoco` before loading the model; for plain `mujoco`, `python -m mujoco.viewer`, "
+    "dm_control or MuJoCo's `simulate`, run `efam install-plugin` once (it copies the plugin "
+    "library into MuJoCo's plugin directory); in C, call mj_loadPluginLibrary() on the path "
+    "`efam install-plugin --print-path` prints"
 )
 
 _lock = threading.Lock()
@@ -41,7 +55,7 @@ class PluginLoadError(ImportError):
 
 def library_path() -> str:
     """Path of the compiled plugin library (raises :class:`PluginLoadError` when it is missing)."""
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), _LIBRARY_FILE)
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), LIBRARY_FILE)
     if not os.path.isfile(path):
         raise PluginLoadError(
             f"the efam.muscle plugin library is missing: {path} does not exist; {_REBUILD_HINT}"
@@ -49,15 +63,11 @@ def library_path() -> str:
     return path
 
 
-def _mujoco_library(mujoco_module) -> str:
-    """The libmujoco shared library inside the mujoco package."""
-    package_dir = os.path.dirname(os.path.abspath(mujoco_module.__file__))
-    patterns = ("mujoco*.dll",) if sys.platform == "win32" else ("libmujoco.so*", "libmujoco*.dylib")
-    for pattern in patterns:
-        found = sorted(glob.glob(os.path.join(package_dir, pattern)))
-        if found:
-            return found[-1]
-    raise PluginLoadError(f"no libmujoco shared library found in the mujoco package at {package_dir}")
+def mujoco_plugin_dir() -> str:
+    """MuJoCo's plugin directory: every library in it is loaded by ``import mujoco``."""
+    import mujoco
+
+    return getattr(mujoco, "PLUGINS_DIR", os.path.join(os.path.dirname(mujoco.__file__), "plugin"))
 
 
 def _check_versions(library: ctypes.CDLL, mujoco_module) -> None:
@@ -71,28 +81,59 @@ def _check_versions(library: ctypes.CDLL, mujoco_module) -> None:
         )
 
 
-def _open_library():
-    import mujoco  # loads libmujoco (privately); our library needs its symbols
+def _file_digest(path: str) -> str:
+    with open(path, "rb") as handle:
+        return hashlib.sha256(handle.read()).hexdigest()
 
-    if sys.platform != "win32":
-        # promote the already-loaded libmujoco to global visibility so our library links to it
-        ctypes.CDLL(_mujoco_library(mujoco), mode=os.RTLD_NOW | os.RTLD_GLOBAL)
+
+def installed_copies() -> list[str]:
+    """Copies of the plugin library in MuJoCo's plugin directory (see ``efam install-plugin``)."""
+    directory = mujoco_plugin_dir()
+    if not os.path.isdir(directory):
+        return []
+    return sorted(
+        os.path.join(directory, name)
+        for name in os.listdir(directory)
+        if name.startswith(os.path.splitext(LIBRARY_FILE)[0])
+    )
+
+
+def _check_registered_copy(path: str) -> None:
+    """Another copy of the library registered efam.muscle first: warn unless it is this build."""
+    ours = _file_digest(path)
+    copies = installed_copies()
+    if copies and all(_file_digest(copy) == ours for copy in copies):
+        return  # `efam install-plugin` put this very build into MuJoCo's plugin directory
+    where = ", ".join(copies) if copies else "a library loaded before efam_mujoco"
+    warnings.warn(
+        f"efam.muscle is registered by {where}, which is not this efam_mujoco's build ({path}); "
+        "models use that copy. Run `efam install-plugin` to replace it with this build, or "
+        "`efam install-plugin --remove` to remove it",
+        RuntimeWarning,
+        stacklevel=4,
+    )
+
+
+def _open_library():
+    import mujoco  # loads libmujoco, and the libraries in MuJoCo's plugin directory
+
     path = library_path()
     try:
+        # linked to libmujoco (see setup.py); loading registers efam.muscle (mjPLUGIN_LIB_INIT)
         library = ctypes.CDLL(path, mode=os.RTLD_NOW | getattr(os, "RTLD_LOCAL", 0))
     except OSError as err:
         raise PluginLoadError(
             f"cannot load the efam.muscle plugin library {path}: {err}; {_REBUILD_HINT}"
         ) from err
-    library.efam_muscle_mujoco_header_version.restype = ctypes.c_int
-    library.efam_muscle_register.restype = ctypes.c_int
+    for function in ("efam_muscle_mujoco_header_version", "efam_muscle_register", "efam_muscle_slot"):
+        getattr(library, function).restype = ctypes.c_int
     _check_versions(library, mujoco)
-    slot = library.efam_muscle_register()
+    slot = library.efam_muscle_register()  # idempotent: the slot the constructor registered
     if slot < 0:
-        raise PluginLoadError(
-            f"another plugin named '{PLUGIN_NAME}' is already registered in this process (a second "
-            f"build of efam_mujoco?); this one is {path}"
-        )
+        slot = library.efam_muscle_slot()
+        if slot < 0:
+            raise PluginLoadError(f"the efam.muscle plugin library {path} failed to register")
+        _check_registered_copy(path)
     return library, slot
 
 
@@ -112,7 +153,39 @@ def plugin_slot() -> int:
 
 
 def is_loaded() -> bool:
+    """Whether :func:`load` has run in this process."""
     return _library is not None
+
+
+def is_missing_plugin_error(err: BaseException) -> bool:
+    """Whether ``err`` is MuJoCo's compile error for an unregistered ``efam.muscle`` plugin."""
+    text = str(err)
+    return PLUGIN_NAME in text and ("not found" in text or "unknown plugin" in text)
+
+
+@contextlib.contextmanager
+def missing_plugin_hint():
+    """Re-raise MuJoCo's "plugin efam.muscle not found" inside the block with how to fix it.
+
+    >>> with missing_plugin_hint():  # doctest: +SKIP
+    ...     model = mujoco.MjModel.from_xml_path("models/arm_3x3.xml")
+    """
+    try:
+        yield
+    except ValueError as err:
+        if is_missing_plugin_error(err):
+            raise ValueError(f"{err}\nHint: {MISSING_PLUGIN_HINT}") from err
+        raise
+
+
+def load_model(path: str):
+    """``mujoco.MjModel`` of the MJCF file ``path``, with the plugin registered first (a
+    missing-plugin error says how to fix it)."""
+    import mujoco
+
+    load()
+    with missing_plugin_hint():
+        return mujoco.MjModel.from_xml_path(os.fspath(path))
 
 
 def _number(value: float) -> str:
@@ -217,6 +290,8 @@ def instance_xml(name: str, muscle: Muscle, indent: str = "", effects=None) -> s
 
 
 __all__ = [
+    "LIBRARY_FILE",
+    "MISSING_PLUGIN_HINT",
     "PLUGIN_NAME",
     "PluginLoadError",
     "SENSOR_EFFECTS",
@@ -224,9 +299,14 @@ __all__ = [
     "config_xml",
     "effects_config",
     "instance_xml",
+    "installed_copies",
     "is_loaded",
+    "is_missing_plugin_error",
     "library_path",
     "load",
+    "load_model",
+    "missing_plugin_hint",
+    "mujoco_plugin_dir",
     "plugin_config",
     "plugin_slot",
 ]

@@ -933,7 +933,9 @@ static void muscle_reset(const mjModel* m, mjtNum* plugin_state, void* plugin_da
 EFAM_EXPORT int efam_muscle_mujoco_header_version(void) { return mjVERSION_HEADER; }
 
 // Register efam.muscle with MuJoCo. Returns the plugin slot, or -1 when a different plugin of
-// the same name is already registered (another build of this library). Idempotent.
+// the same name is already registered (another copy of this library, e.g. one in MuJoCo's plugin
+// directory: MuJoCo would abort on a second, non-identical registration, so we leave it be).
+// Idempotent.
 EFAM_EXPORT int efam_muscle_register(void) {
   int slot = -1;
   const mjpPlugin* existing = mjp_getPlugin(PLUGIN_NAME, &slot);
@@ -956,4 +958,29 @@ EFAM_EXPORT int efam_muscle_register(void) {
   plugin.advance = effects_advance;  // efam_effects.h: commits the effects' state once per step
   plugin.compute = muscle_compute;
   return mjp_registerPlugin(&plugin);
+}
+
+// The registry slot of efam.muscle, whichever library registered it; -1 when none did.
+EFAM_EXPORT int efam_muscle_slot(void) {
+  int slot = -1;
+  return mjp_getPlugin(PLUGIN_NAME, &slot) ? slot : -1;
+}
+
+// 1 when the registered efam.muscle is this library's code, 0 when another copy registered it.
+EFAM_EXPORT int efam_muscle_registered_here(void) {
+  int slot = -1;
+  const mjpPlugin* existing = mjp_getPlugin(PLUGIN_NAME, &slot);
+  return existing && existing->compute == muscle_compute;
+}
+
+// Self-registration when the library is loaded, as MuJoCo expects of a plugin library: by
+// mj_loadPluginLibrary / mj_loadAllPluginLibraries (C, simulate), by `import mujoco` when the
+// library sits in MuJoCo's plugin directory (Python, dm_control, `python -m mujoco.viewer`), and
+// by `import efam_mujoco`. Under another MuJoCo minor version the structs may differ: register
+// nothing then (efam_mujoco's loader reports the mismatch; the library is linked to the
+// libmujoco it was built against, so this only happens with a relinked or preloaded MuJoCo).
+mjPLUGIN_LIB_INIT(efam_muscle) {
+  if (mj_version() / 1000 == mjVERSION_HEADER / 1000) {
+    efam_muscle_register();
+  }
 }
