@@ -100,6 +100,7 @@ class Track(Reach):
         self.period_range_s = period_range_s
         self._coefficients = np.zeros((2 * self.HARMONICS + 1, 3))
         self.period_s = period_range_s[1]
+        self._target_velocity = np.zeros(3)
 
     def initialize_task(self, physics):
         self.period_s = float(self.random.uniform(*self.period_range_s))
