@@ -171,9 +171,9 @@ def test_pressure_lag_is_on_by_default_and_configurable():
     env = suite.load("bundle", "reach", task_kwargs={"random": 0})
     env.reset()
     before = env.physics.muscle_pressure_fractions()
-    env.step(np.ones(3))  # one 20 ms step towards full pressure through a 50 ms lag
+    env.step(np.ones(3))  # one 50 ms control step towards full pressure through a 50 ms lag
     after = env.physics.muscle_pressure_fractions()
-    expected = 1.0 - (1.0 - before) * np.exp(-0.02 / 0.05)
+    expected = 1.0 - (1.0 - before) * np.exp(-0.05 / 0.05)
     np.testing.assert_allclose(after, expected, atol=1e-9)
     instant = suite.load("bundle", "reach", task_kwargs={"random": 0, "arm_options": {"pressure_tau_s": 0.0}})
     instant.reset()

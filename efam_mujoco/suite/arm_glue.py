@@ -9,7 +9,7 @@ The suite acts on whatever arm :mod:`efam_mujoco.arm` builds. It relies on this 
   first section), per section j the disk bodies ``s{j}d{k}`` (k = 1..D, the last is the section's
   end plate), a site ``tip`` with sensor ``tip_pos``, and one actuator and one tendon per muscle,
   named by ``arm.muscle_names(spec)``, ctrl = gauge pressure in Pa, ctrlrange [0, rated];
-* ``arm.muscle_pressures(model, data)`` (the pressure each muscle acts with, Pa),
+* the pressure convention of ``arm.muscle_pressures(model, data)`` (activation = pressure),
   ``arm.gravity_in_base(spec)``, ``arm.point_masses(spec)``, ``arm.ORIENTATIONS``;
 * ``statics.solve_arm(sections, pressures, gravity_m_s2=, point_masses=, tip_force_N=,
   initial=)`` returning ``tip_position_m`` (base frame): the reference the controllers invert.
@@ -61,9 +61,14 @@ def muscle_names(spec: arm_builder.ArmSpec) -> list[str]:
     return [name for section in arm_builder.muscle_names(spec) for name in section]
 
 
-def muscle_pressures_Pa(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-    """The pressure each muscle acts with (after the lag), Pa, in actuator order."""
-    return arm_builder.muscle_pressures(model, data)
+def muscle_pressures_Pa(act_adr, act, ctrl, rated_Pa) -> np.ndarray:
+    """The pressure each muscle acts with, Pa, in actuator order: as
+    ``arm.muscle_pressures(model, data)`` (the activation of an actuator with pressure
+    dynamics, else its ctrl clamped to [0, rated]), vectorised for a per-step observation."""
+    out = np.clip(ctrl, 0.0, rated_Pa)
+    lagged = act_adr >= 0
+    out[lagged] = act[act_adr[lagged]]
+    return out
 
 
 def base_quaternion(spec: arm_builder.ArmSpec) -> np.ndarray:

@@ -199,6 +199,12 @@ class _Layout:
             chain = [start] + [disks[j][k] for k in sorted(disks[j])]
             self.sections.append(np.array(chain))
             start = chain[-1]
+        # vectorised forms: each backbone segment's two ends, where each section's segments start
+        self.segment_from = np.concatenate([chain[:-1] for chain in self.sections])
+        self.segment_to = np.concatenate([chain[1:] for chain in self.sections])
+        self.segment_starts = np.cumsum([0] + [len(chain) - 1 for chain in self.sections[:-1]])
+        self.section_base = np.array([chain[0] for chain in self.sections])
+        self.section_end = np.array([chain[-1] for chain in self.sections])
         sensor = lambda n: int(model.sensor_adr[model.name2id(n, "sensor")])
         self.tip_pos = sensor("tip_pos")
         self.tip_vel = sensor("tip_vel")
@@ -215,6 +221,26 @@ class _Layout:
         self.target_mocap = int(model.body_mocapid[model.name2id("target", "body")])
 
 
+class _Views:
+    """The raw ``mujoco.MjData`` arrays the accessors read (dm_control's wrapped attribute access
+    costs microseconds per call: more than the accessors themselves)."""
+
+    def __init__(self, data):
+        raw = data.ptr
+        self.raw = raw
+        for name in (
+            "sensordata",
+            "xpos",
+            "xmat",
+            "mocap_pos",
+            "act",
+            "ctrl",
+            "ten_length",
+            "actuator_force",
+        ):
+            setattr(self, name, getattr(raw, name))
+
+
 class EfamPhysics(mujoco.Physics):
     """``Physics`` of an EFAM arm, with named accessors (world frame unless said otherwise)."""
 
@@ -225,11 +251,18 @@ class EfamPhysics(mujoco.Physics):
             layout = self.__dict__["_efam_layout"] = _Layout(self.model)
         return layout
 
+    @property
+    def views(self) -> _Views:
+        views = self.__dict__.get("_efam_views")
+        if views is None or views.raw is not self.data.ptr:
+            views = self.__dict__["_efam_views"] = _Views(self.data)
+        return views
+
     # -- frames
     def base_frame(self):
         """Position and rotation matrix of the arm's base plate."""
-        b = self.layout.base
-        return self.data.xpos[b].copy(), self.data.xmat[b].reshape(3, 3).copy()
+        b, views = self.layout.base, self.views
+        return views.xpos[b].copy(), views.xmat[b].reshape(3, 3).copy()
 
     def to_world(self, point_in_base):
         """A point given in the arm's base frame, in the world."""
@@ -245,19 +278,19 @@ class EfamPhysics(mujoco.Physics):
     def tip_position(self) -> np.ndarray:
         """Tip site position (sensor ``tip_pos``), m."""
         adr = self.layout.tip_pos
-        return self.data.sensordata[adr : adr + 3].copy()
+        return self.views.sensordata[adr : adr + 3].copy()
 
     def tip_velocity(self) -> np.ndarray:
         """Tip site linear velocity (sensor ``tip_vel``), m/s."""
         adr = self.layout.tip_vel
-        return self.data.sensordata[adr : adr + 3].copy()
+        return self.views.sensordata[adr : adr + 3].copy()
 
     def target_position(self) -> np.ndarray:
         """Position of the mocap ``target``, m."""
-        return self.data.mocap_pos[self.layout.target_mocap].copy()
+        return self.views.mocap_pos[self.layout.target_mocap].copy()
 
     def set_target_position(self, position) -> None:
-        self.data.mocap_pos[self.layout.target_mocap] = position
+        self.views.mocap_pos[self.layout.target_mocap] = position
 
     def tip_to_target_distance(self) -> float:
         return float(np.linalg.norm(self.target_position() - self.tip_position()))
@@ -267,23 +300,20 @@ class EfamPhysics(mujoco.Physics):
         """Per section, the bend as a vector theta (cos phi, sin phi) in its base plate's frame
         (rad): theta the angle between the base and end plate axes, phi the direction the end
         plate's axis leans towards."""
-        out = np.empty((len(self.layout.sections), 2))
-        xmat = self.data.xmat
-        for j, chain in enumerate(self.layout.sections):
-            R0 = xmat[chain[0]].reshape(3, 3)
-            z1 = xmat[chain[-1]].reshape(3, 3)[:, 2]
-            v = R0.T @ z1
-            lateral = math.hypot(v[0], v[1])
-            theta = math.atan2(lateral, v[2])
-            out[j] = (theta * v[0] / lateral, theta * v[1] / lateral) if lateral > 1e-12 else (0.0, 0.0)
-        return out
+        layout, xmat = self.layout, self.views.xmat
+        base = xmat[layout.section_base].reshape(-1, 3, 3)
+        end_axis = xmat[layout.section_end].reshape(-1, 3, 3)[:, :, 2]
+        v = np.einsum("sji,sj->si", base, end_axis)  # end plate axis in the base plate frame
+        lateral = np.hypot(v[:, 0], v[:, 1])
+        theta = np.arctan2(lateral, v[:, 2])
+        scale = np.divide(theta, lateral, out=np.zeros_like(theta), where=lateral > 1e-12)
+        return v[:, :2] * scale[:, None]
 
     def section_lengths(self) -> np.ndarray:
         """Per section, the backbone length: the polyline through its plates' centres, m."""
-        xpos = self.data.xpos
-        return np.array(
-            [np.linalg.norm(np.diff(xpos[chain], axis=0), axis=1).sum() for chain in self.layout.sections]
-        )
+        layout, xpos = self.layout, self.views.xpos
+        segments = np.linalg.norm(xpos[layout.segment_to] - xpos[layout.segment_from], axis=1)
+        return np.add.reduceat(segments, layout.segment_starts)
 
     # -- muscles
     def rated_pressures_Pa(self) -> np.ndarray:
@@ -292,7 +322,8 @@ class EfamPhysics(mujoco.Physics):
 
     def muscle_pressures_Pa(self) -> np.ndarray:
         """The pressure each muscle acts with (after the lag), Pa."""
-        return arm_glue.muscle_pressures_Pa(self.model.ptr, self.data.ptr)
+        layout, views = self.layout, self.views
+        return arm_glue.muscle_pressures_Pa(layout.act_adr, views.act, views.ctrl, layout.rated)
 
     def muscle_pressure_fractions(self) -> np.ndarray:
         """:meth:`muscle_pressures_Pa` over the rated pressures."""
@@ -300,26 +331,25 @@ class EfamPhysics(mujoco.Physics):
 
     def muscle_lengths(self) -> np.ndarray:
         """Tendon length of each muscle, m."""
-        return self.data.ten_length[self.layout.tendons].copy()
+        return self.views.ten_length[self.layout.tendons].copy()
 
     def muscle_forces(self) -> np.ndarray:
         """Actuator force of each muscle, N (push positive)."""
-        return self.data.actuator_force.copy()
+        return self.views.actuator_force.copy()
 
     def set_pressure_fractions(self, fractions) -> None:
         """Command pressures (fractions of rated) and set the lagged pressure state to them."""
         pressures = np.clip(np.asarray(fractions, float), 0.0, 1.0) * self.layout.rated
-        self.data.ctrl[:] = pressures
-        for a, adr in enumerate(self.layout.act_adr):
-            if adr >= 0:
-                self.data.act[adr] = pressures[a]
+        views, adr = self.views, self.layout.act_adr
+        views.ctrl[:] = pressures
+        views.act[adr[adr >= 0]] = pressures[adr >= 0]
 
     # -- force plate
     def plate_force(self) -> float:
         """Normal force on the force plate (touch sensor ``plate_force``), N."""
         if self.layout.plate_force is None:
             raise ValueError("this model has no force plate")
-        return float(self.data.sensordata[self.layout.plate_force])
+        return float(self.views.sensordata[self.layout.plate_force])
 
 
 # -------------------------------------------------------------------------------- tasks
@@ -342,7 +372,7 @@ class EfamTask(base.Task):
 
     def before_step(self, action, physics):
         action = getattr(action, "continuous_actions", action)
-        physics.data.ctrl[:] = np.clip(action, 0.0, 1.0) * physics.layout.rated
+        physics.views.ctrl[:] = np.clip(action, 0.0, 1.0) * physics.layout.rated
 
     def initialize_episode(self, physics):
         physics.forward()  # the base frame, for targets given in it

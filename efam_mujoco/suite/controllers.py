@@ -211,17 +211,17 @@ def run_episode(env, policy, frames: list | None = None, camera="perspective", f
     return total, bool(env.task.success(env.physics)), final_error(env.task, env.physics)
 
 
-def evaluate(domain: str, task: str, policy_name: str, episodes: int, seed: int = 0, progress=None):
+def evaluate(domain: str, task: str, policy_name: str, episodes: int, seed: int = 0):
     """Run ``episodes`` seeded episodes of a policy (``"model"`` or ``"random"``) on a task;
-    episode i uses task seed ``seed + i``. Returns a list of :class:`EpisodeResult`."""
+    episode i uses task seed ``seed + i`` (a progress bar on a terminal). Returns a list of
+    :class:`EpisodeResult`."""
+    from ..progress import progress
     from . import load
 
     results = []
-    for i in range(episodes):
+    for i in progress(range(episodes), f"{domain}-{task} {policy_name}", total=episodes):
         env = load(domain, task, task_kwargs={"random": seed + i})
         policy = InverseStaticsController(env) if policy_name == "model" else RandomPolicy(env, seed=seed + i)
         ret, ok, err = run_episode(env, policy)
         results.append(EpisodeResult(seed + i, ret, ok, err))
-        if progress is not None:
-            progress.update(1)
     return results
