@@ -22,7 +22,7 @@ def test_adapter_passes_gymnasiums_checker():
         observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
         assert not terminated and 0.0 <= reward <= 1.0 and isinstance(info["success"], bool)
         steps += 1
-    assert steps == 200  # 10 s at 20 Hz
+    assert steps == 100  # 10 s at 10 Hz
 
 
 def test_registered_ids_make_environments():

@@ -142,3 +142,17 @@ def test_cli_lists_and_refuses(capsys):
     assert "no task octopus-reach" in capsys.readouterr().err
     assert efam_main(["suite", "--task", "extend", "--episodes", "1"]) == 0
     assert "bundle-extend               random: success" in capsys.readouterr().out
+
+
+def test_track_target_velocity_is_the_derivative_of_its_path():
+    env = suite.load("bundle", "track", task_kwargs={"random": 2})
+    env.reset()
+    task = env.task
+    for t in (0.0, 1.3, 4.0):
+        position, velocity = task.target_at(t)
+        h = 1e-5
+        ahead, _ = task.target_at(t + h)
+        behind, _ = task.target_at(t - h)
+        np.testing.assert_allclose(velocity, (ahead - behind) / (2 * h), atol=1e-6)
+    # a closed loop: back where it started after one period
+    np.testing.assert_allclose(task.target_at(task.period_s)[0], task.target_at(0.0)[0], atol=1e-9)

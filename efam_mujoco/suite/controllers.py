@@ -6,7 +6,7 @@ Model-based reach (:class:`InverseStaticsController`):
 1. **Feed-forward, inverse statics.** The target (base frame) is first met by one constant-
    curvature arc through it (every section the same arc length, bend and direction: closed
    form), whose muscle lengths give unloaded pressures through the inverse of the muscles' free
-   length. These seed a bounded least-squares solve of the reference statics (the arm's own
+   length. These seed a bounded Gauss-Newton solve (Broyden updates) of the reference statics (the arm's own
    weight included; no payload: the controller does not know it) for pressure fractions
    ``u*`` whose rest tip is the target, with a small pull towards the seed that settles the
    redundancy of a multi-section arm. The same solve gives the Jacobian ``J`` of the rest tip
@@ -23,16 +23,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from . import arm_glue
 
 # ------------------------------------------------------------------------- inverse statics
 
 
-def cc_arc_pressures(spec, target_in_base) -> np.ndarray:
-    """Pressure fractions that hold the arm unloaded as one constant-curvature arc through
-    ``target_in_base`` (every section an equal share of the arc), clipped to [0, 1]."""
+def cc_arc_shape(spec, target_in_base) -> np.ndarray:
+    """Per section ``(s, kx, ky)`` of one constant-curvature arc from the base through
+    ``target_in_base``, every section an equal share of it: (S, 3)."""
     x, y, z = (float(v) for v in target_in_base)
     lateral = math.hypot(x, y)
     bend = 2.0 * math.atan2(lateral, z)  # the chord leaves the base at half the bend
@@ -40,12 +39,19 @@ def cc_arc_pressures(spec, target_in_base) -> np.ndarray:
     half = bend / 2
     arc = chord * (half / math.sin(half) if half > 1e-9 else 1.0)
     direction = math.atan2(y, x)
-    count = len(spec.sections)
-    s = arc / count
     kappa = bend / arc if arc > 0 else 0.0
+    count = len(spec.sections)
+    return np.tile([arc / count, kappa * math.cos(direction), kappa * math.sin(direction)], (count, 1))
+
+
+def cc_arc_pressures(spec, target_in_base) -> np.ndarray:
+    """Pressure fractions that hold the arm unloaded as one constant-curvature arc through
+    ``target_in_base`` (:func:`cc_arc_shape`), clipped to [0, 1]."""
     fractions = []
-    for muscles, radii, angles in arm_glue.section_muscles(spec):
-        lengths = s * (1.0 - radii * kappa * np.cos(direction - angles))
+    for (s, kx, ky), (muscles, radii, angles) in zip(
+        cc_arc_shape(spec, target_in_base), arm_glue.section_muscles(spec)
+    ):
+        lengths = s * (1.0 - radii * (kx * np.cos(angles) + ky * np.sin(angles)))
         fractions.append(
             [
                 arm_glue.pressure_for_free_length(m, L, spec.max_pressure_Pa) / spec.max_pressure_Pa
@@ -69,16 +75,22 @@ class InverseStatics:
 
 
 def inverse_statics(
-    spec, target_in_base, payload_kg: float = 0.0, regularisation: float = 1e-3, max_evaluations: int = 12
-):
-    """Solve the reference statics for pressure fractions that put the tip on the target.
-
-    Least squares over fractions in [0, 1] of ``|tip(u) - target| / 1 mm`` and
-    ``regularisation * |u - seed| / 0.01``: the seed is :func:`cc_arc_pressures`.
-    """
+    spec,
+    target_in_base,
+    payload_kg: float = 0.0,
+    tolerance_m: float = 1e-5,
+    max_iterations: int = 20,
+    regularisation: float = 1e-4,
+) -> InverseStatics:
+    """Solve the reference statics for pressure fractions in [0, 1] that put the rest tip on
+    the target: Gauss-Newton from :func:`cc_arc_pressures` with one finite-difference Jacobian
+    and Broyden updates after it (each evaluation is a statics solve, the costly part),
+    minimising ``|tip(u) - target|^2 + regularisation^2 |u - seed|^2`` (m^2): the pull to the
+    seed only acts along the directions the tip does not see (a multi-section arm's
+    redundancy). Stops within ``tolerance_m`` of the target."""
     target = np.asarray(target_in_base, dtype=float)
     seed = cc_arc_pressures(spec, target)
-    warm = {"initial": None}
+    warm = {"initial": cc_arc_shape(spec, target).ravel()}  # the statics solve starts on the arc
 
     def tip(u):
         position, warm["initial"] = arm_glue.reference_tip(
@@ -86,16 +98,31 @@ def inverse_statics(
         )
         return position
 
-    def residual(u):
-        return np.concatenate([(tip(u) - target) / 1e-3, regularisation * (u - seed) / 0.01])
-
-    start = np.clip(seed, 1e-3, 1 - 1e-3)
-    result = least_squares(
-        residual, start, bounds=(0.0, 1.0), diff_step=1e-4, xtol=1e-6, ftol=1e-6, max_nfev=max_evaluations
-    )
-    u = result.x
-    jacobian = result.jac[:3] * 1e-3
-    return InverseStatics(u, jacobian, tip(u), seed)
+    u = np.clip(seed, 0.0, 1.0)
+    x = tip(u)
+    step = 1e-4
+    jacobian = np.empty((3, u.size))
+    for i in range(u.size):  # one-sided differences, inwards from the bounds
+        h = step if u[i] + step <= 1.0 else -step
+        probe = u.copy()
+        probe[i] += h
+        jacobian[:, i] = (tip(probe) - x) / h
+    mu = regularisation**2
+    identity = np.eye(u.size)
+    for _ in range(max_iterations):
+        error = x - target
+        if np.linalg.norm(error) <= tolerance_m:
+            break
+        delta = -np.linalg.solve(jacobian.T @ jacobian + mu * identity, jacobian.T @ error + mu * (u - seed))
+        u_new = np.clip(u + delta, 0.0, 1.0)
+        delta = u_new - u
+        if not np.any(delta):
+            break  # pinned on the bounds
+        x_new = tip(u_new)
+        # Broyden: the Jacobian takes the step's observed change
+        jacobian += np.outer((x_new - x) - jacobian @ delta, delta) / (delta @ delta)
+        u, x = u_new, x_new
+    return InverseStatics(u, jacobian, x, seed)
 
 
 def damped_pinv(jacobian, damping: float = 1e-3) -> np.ndarray:

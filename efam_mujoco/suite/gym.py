@@ -30,7 +30,7 @@ from . import ALL_TASKS, load
 class SuiteEnv(gymnasium.Env):
     """One task of the EFAM suite as a ``gymnasium.Env``."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(
         self,

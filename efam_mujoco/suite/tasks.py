@@ -100,7 +100,8 @@ class Track(Reach):
         self.period_range_s = period_range_s
         self._coefficients = np.zeros((2 * self.HARMONICS + 1, 3))
         self.period_s = period_range_s[1]
-        self._target_velocity = np.zeros(3)
+        self._target_velocity = [0.0, 0.0, 0.0]
+        self._world_constant, self._world_harmonics = [0.0, 0.0, 0.0], []
 
     def initialize_task(self, physics):
         self.period_s = float(self.random.uniform(*self.period_range_s))
@@ -123,6 +124,15 @@ class Track(Reach):
             tip, warm = arm_glue.reference_tip(self.arm_spec, np.concatenate(pressures), initial=warm)
             loop.append(tip)
         self._coefficients = _fourier_fit(phases, np.array(loop), self.HARMONICS)
+        # the same series in the world frame, as plain floats: evaluated every control step
+        base_position, R = physics.base_frame()
+        world = self._coefficients @ R.T
+        world[0] += base_position
+        self._world_constant = world[0].tolist()
+        self._world_harmonics = [
+            (world[2 * h - 1].tolist(), world[2 * h].tolist()) for h in range(1, self.HARMONICS + 1)
+        ]
+        self.target_in_base = self.target_at(0.0)[0]
         self._update_target(physics, 0.0)
 
     def loop_limits(self) -> workspace.WorkspaceLimits:
@@ -136,11 +146,16 @@ class Track(Reach):
         return _fourier_eval(self._coefficients, omega * time_s, omega)
 
     def _update_target(self, physics, time_s):
-        position, velocity = self.target_at(time_s)
-        self.target_in_base = position
-        _, R = physics.base_frame()
-        physics.set_target_position(physics.to_world(position))
-        self._target_velocity = R @ velocity
+        omega = 2 * math.pi / self.period_s
+        phase = omega * time_s
+        position, velocity = list(self._world_constant), [0.0, 0.0, 0.0]
+        for h, (a, b) in enumerate(self._world_harmonics, start=1):
+            c, s = math.cos(h * phase), math.sin(h * phase)
+            for i in range(3):
+                position[i] += a[i] * c + b[i] * s
+                velocity[i] += h * omega * (b[i] * c - a[i] * s)
+        physics.set_target_position(position)
+        self._target_velocity = velocity
 
     def after_step(self, physics):
         # observation and reward of this step see the target where it is now
@@ -149,7 +164,7 @@ class Track(Reach):
 
     def get_observation(self, physics):
         obs = super().get_observation(physics)
-        obs["target_velocity"] = self._target_velocity.copy()
+        obs["target_velocity"] = np.array(self._target_velocity)
         return obs
 
 
@@ -173,14 +188,14 @@ def _fourier_fit(phases, points, harmonics):
 
 
 def _fourier_eval(coefficients, phase, omega):
-    harmonics = (len(coefficients) - 1) // 2
-    position = coefficients[0].copy()
-    velocity = np.zeros(3)
-    for h in range(1, harmonics + 1):
-        a, b = coefficients[2 * h - 1], coefficients[2 * h]
-        position += a * math.cos(h * phase) + b * math.sin(h * phase)
-        velocity += h * omega * (-a * math.sin(h * phase) + b * math.cos(h * phase))
-    return position, velocity
+    """Position and velocity of the series (rows: constant, then cos h, sin h per harmonic)."""
+    h = np.arange(1, (len(coefficients) - 1) // 2 + 1)
+    cos, sin = np.cos(h * phase), np.sin(h * phase)
+    basis = np.empty(len(coefficients))
+    basis[0], basis[1::2], basis[2::2] = 1.0, cos, sin
+    rate = np.empty(len(coefficients))
+    rate[0], rate[1::2], rate[2::2] = 0.0, -h * omega * sin, h * omega * cos
+    return basis @ coefficients, rate @ coefficients
 
 
 # ------------------------------------------------------------------------------------ extend
@@ -217,14 +232,12 @@ class Extend(common.EfamTask):
         return physics.section_lengths() - self.target_lengths
 
     def get_reward(self, physics):
-        errors = np.abs(self.length_errors(physics))
-        return float(
-            np.mean(
-                rewards.tolerance(
-                    errors, bounds=(0.0, self.tolerance_m), margin=10 * self.tolerance_m, sigmoid="long_tail"
-                )
-            )
-        )
+        # per section on plain floats: numpy on one-element arrays costs more than the physics
+        errors = [abs(e) for e in self.length_errors(physics).tolist()]
+        bounds, margin = (0.0, self.tolerance_m), 10 * self.tolerance_m
+        return sum(
+            rewards.tolerance(e, bounds=bounds, margin=margin, sigmoid="long_tail") for e in errors
+        ) / len(errors)
 
     def success(self, physics) -> bool:
         return bool(np.all(np.abs(self.length_errors(physics)) <= self.tolerance_m))
