@@ -33,6 +33,7 @@ COMMAND_MODULES = (
     "efam_mujoco.diagnose",
     "efam_mujoco.size",
     "efam_mujoco.plugin.install",
+    "efam_mujoco.suite.cli",
 )
 
 #: Input and output arguments of commands whose module does not declare them itself

@@ -1,0 +1,143 @@
+"""``efam suite``: list the tasks, score the model-based controller and the random baseline,
+and write an image strip of a solved episode.
+
+    efam suite --list
+    efam suite --domain bundle --task reach --episodes 50 --strip docs/figures/suite_bundle_reach.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..files import write_json_atomic
+
+#: tasks the model-based controller acts on (those with a tip target)
+CONTROLLED_TASKS = ("reach", "reach_payload", "track")
+
+
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--list", action="store_true", help="list the domains and tasks")
+    parser.add_argument("--domain", default="bundle", help="bundle or arm (default bundle)")
+    parser.add_argument("--task", default="reach", help="task name (default reach)")
+    parser.add_argument("--episodes", type=int, default=10, help="seeded episodes per policy (default 10)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
+    parser.add_argument(
+        "--strip", type=Path, help="write an image strip of the controller's first episode (PNG)"
+    )
+    parser.add_argument("--json", type=Path, help="write the per-episode results as JSON")
+
+
+def _summary(results) -> dict:
+    errors = np.array([r.final_error for r in results])
+    return {
+        "episodes": len(results),
+        "success_rate": float(np.mean([r.success for r in results])),
+        "mean_return": float(np.mean([r.episode_return for r in results])),
+        "median_final_error": float(np.median(errors)),
+        "worst_final_error": float(errors.max()),
+    }
+
+
+def write_strip(domain: str, task: str, seed: int, path: Path, frames: int = 6) -> Path:
+    """Render ``frames`` evenly spaced views of one controlled episode side by side."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from . import controllers, load
+
+    env = load(domain, task, task_kwargs={"random": seed})
+    policy = controllers.InverseStaticsController(env)
+    steps = int(round(env._step_limit))  # noqa: SLF001  (dm_control keeps it private)
+    images: list = []
+    env_frames_every = max(1, steps // frames)
+    time_step = env.reset()
+    policy.reset(time_step)
+    images.append(env.physics.render(240, 320, camera_id="perspective"))
+    count = 0
+    while not time_step.last():
+        time_step = env.step(policy(time_step))
+        count += 1
+        if count % env_frames_every == 0 and len(images) < frames:
+            images.append(env.physics.render(240, 320, camera_id="perspective"))
+    images[-1] = env.physics.render(240, 320, camera_id="perspective")
+    dt = env.control_timestep()
+    times = [i * env_frames_every * dt for i in range(len(images) - 1)] + [count * dt]
+    fig, axes = plt.subplots(1, len(images), figsize=(2.4 * len(images), 2.2))
+    for ax, image, t in zip(axes, images, times):
+        ax.imshow(image)
+        ax.set_title(f"t = {t:.1f} s", fontsize=9)
+        ax.axis("off")
+    error = controllers.final_error(env.task, env.physics)
+    fig.suptitle(
+        f"{domain}-{task}, seed {seed}: inverse statics + PI, final tip error {error * 1e3:.2f} mm",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _run(args) -> int:
+    from . import ALL_TASKS, BENCHMARKING, controllers
+
+    if args.list:
+        for domain, task in ALL_TASKS:
+            tag = "benchmarking" if (domain, task) in BENCHMARKING else "extra"
+            print(f"{domain}-{task}  ({tag})")
+        return 0
+    if (args.domain, args.task) not in ALL_TASKS:
+        raise ValueError(f"--domain/--task: no task {args.domain}-{args.task}; see efam suite --list")
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    policies = ["model", "random"] if args.task in CONTROLLED_TASKS else ["random"]
+    report = {"domain": args.domain, "task": args.task, "seed": args.seed}
+    for name in policies:
+        results = controllers.evaluate(args.domain, args.task, name, args.episodes, args.seed)
+        summary = _summary(results)
+        report[name] = {**summary, "per_episode": [r.__dict__ for r in results]}
+        unit = "N" if args.task == "push" else "mm"
+        scale = 1.0 if unit == "N" else 1e3
+        label = "inverse statics + PI" if name == "model" else "random"
+        print(
+            f"{args.domain}-{args.task} {label:>20}: success {summary['success_rate'] * 100:5.1f} % of {args.episodes}, "
+            f"mean return {summary['mean_return']:6.1f}, final error median {summary['median_final_error'] * scale:.2f} {unit}, "
+            f"worst {summary['worst_final_error'] * scale:.2f} {unit}"
+        )
+    if args.json:
+        write_json_atomic(args.json, report)
+    if args.strip:
+        if "model" not in policies:
+            raise ValueError(f"--strip: the controller acts on {', '.join(CONTROLLED_TASKS)} only")
+        print(f"wrote {write_strip(args.domain, args.task, args.seed, args.strip)}")
+    return 0
+
+
+def register_cli(subparsers) -> None:
+    """``efam suite`` (for efam_mujoco.cli.COMMAND_MODULES)."""
+    parser = subparsers.add_parser(
+        "suite",
+        help="dm_control tasks on EFAM bundles and arms: score the controller and a random baseline",
+        description=__doc__.splitlines()[0],
+    )
+    _add_arguments(parser)
+    parser.set_defaults(run=_run)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m efam_mujoco.suite.cli", description=__doc__.splitlines()[0]
+    )
+    _add_arguments(parser)
+    return _run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,94 @@
+"""A thin Gymnasium adapter for the EFAM suite (optional: ``pip install gymnasium``, or the
+``rl`` extra).
+
+    from efam_mujoco.suite.gym import SuiteEnv
+    env = SuiteEnv("bundle", "reach")
+    observation, info = env.reset(seed=0)
+
+Observations: the suite's observation dict flattened in its spec's order into one ``float32``
+vector (``SuiteEnv.observation_keys`` names the slices). Actions: ``Box(0, 1)``, the pressure
+fractions of rated. An episode ends by truncation at the suite's time limit (the suite's
+tasks never terminate); ``info["success"]`` is the task's success test at that step.
+``register_all()`` registers ``efam/<domain>-<task>-v0`` for every task.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+try:
+    import gymnasium
+    from gymnasium import spaces
+except ImportError as error:  # pragma: no cover - the message is the point
+    raise ImportError(
+        "efam_mujoco.suite.gym needs gymnasium: pip install gymnasium (or pip install -e '.[rl]')"
+    ) from error
+
+from . import ALL_TASKS, load
+
+
+class SuiteEnv(gymnasium.Env):
+    """One task of the EFAM suite as a ``gymnasium.Env``."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        domain: str,
+        task: str,
+        task_kwargs=None,
+        render_mode=None,
+        camera="perspective",
+        size=(240, 320),
+    ):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.domain, self.task = domain, task
+        self.task_kwargs = dict(task_kwargs or {})
+        self.render_mode, self.camera, self.size = render_mode, camera, size
+        self.env = load(domain, task, task_kwargs=self.task_kwargs)
+        spec = self.env.observation_spec()
+        self.observation_keys = list(spec)
+        count = sum(int(np.prod(s.shape)) for s in spec.values())
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(count,), dtype=np.float32)
+        action = self.env.action_spec()
+        self.action_space = spaces.Box(
+            np.broadcast_to(action.minimum, action.shape).astype(np.float32),
+            np.broadcast_to(action.maximum, action.shape).astype(np.float32),
+            dtype=np.float32,
+        )
+        self.metadata = {**self.metadata, "render_fps": int(round(1 / self.env.control_timestep()))}
+
+    def _flat(self, observation) -> np.ndarray:
+        return np.concatenate([np.ravel(observation[k]) for k in self.observation_keys]).astype(np.float32)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        if seed is not None:  # a seeded task: its targets and starts follow the seed
+            self.env = load(self.domain, self.task, task_kwargs={**self.task_kwargs, "random": int(seed)})
+        time_step = self.env.reset()
+        return self._flat(time_step.observation), {}
+
+    def step(self, action):
+        time_step = self.env.step(np.asarray(action, dtype=np.float64))
+        info = {"success": bool(self.env.task.success(self.env.physics))}
+        return self._flat(time_step.observation), float(time_step.reward), False, bool(time_step.last()), info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        return self.env.physics.render(*self.size, camera_id=self.camera)
+
+    def close(self):
+        self.env.close()
+
+
+def register_all() -> list[str]:
+    """Register ``efam/<domain>-<task>-v0`` with Gymnasium for every task; returns the ids."""
+    ids = []
+    for domain, task in ALL_TASKS:
+        env_id = f"efam/{domain}-{task}-v0"
+        if env_id not in gymnasium.registry:
+            gymnasium.register(id=env_id, entry_point=SuiteEnv, kwargs={"domain": domain, "task": task})
+        ids.append(env_id)
+    return ids

@@ -1,0 +1,188 @@
+"""The EFAM suite passes the checks dm_control applies to its own suite (suite_test.py), for
+every task, and runs random steps without a MuJoCo warning (1000 on the bundle here; the arm's
+1000 in bench/bench_suite.py).
+
+Adapted from dm_control's checks where the suite differs on purpose: actions are pressure
+fractions in [0, 1] (dm_control's benchmarking tasks use [-1, 1]).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from dm_control.rl import control
+
+from efam_mujoco import suite
+from efam_mujoco.suite import common
+
+TASKS = [pytest.param(d, t, id=f"{d}-{t}") for d, t in suite.ALL_TASKS]
+
+
+def random_policy(action_spec, seed):
+    random = np.random.RandomState(seed)
+    return lambda time_step: random.uniform(action_spec.minimum, action_spec.maximum)
+
+
+def trajectory(domain, task, seed, episodes=2, steps=10, **load_kwargs):
+    env = suite.load(domain, task, task_kwargs={"random": seed}, **load_kwargs)
+    policy = random_policy(env.action_spec(), seed)
+    for _ in range(episodes):
+        time_step = env.reset()
+        yield time_step
+        for _ in range(steps):
+            time_step = env.step(policy(time_step))
+            yield time_step
+            if time_step.last():
+                break
+
+
+def test_registry():
+    assert set(suite.ALL_TASKS) == set(suite.BENCHMARKING) | set(suite.EXTRA)
+    assert not set(suite.BENCHMARKING) & set(suite.EXTRA)
+    for domain in ("bundle", "arm"):
+        assert set(suite.TASKS_BY_DOMAIN[domain]) >= {"reach", "track", "extend", "push", "reach_payload"}
+    assert len(suite.ALL_TASKS) == sum(len(t) for t in suite.TASKS_BY_DOMAIN.values())
+
+
+def test_load_refuses_unknown_names():
+    with pytest.raises(ValueError, match="unknown domain 'cheetah'"):
+        suite.load("cheetah", "run")
+    with pytest.raises(ValueError, match="unknown task 'swim' in domain 'bundle'"):
+        suite.load("bundle", "swim")
+    with pytest.raises(ValueError, match=r"unknown task_kwargs \['seed'\]"):
+        suite.load("bundle", "reach", task_kwargs={"seed": 1})
+
+
+@pytest.mark.parametrize("domain,task", TASKS)
+def test_model_components_named_and_cameras(domain, task):
+    env = suite.load(domain, task)
+    model = env.physics.model
+    kinds = [
+        ("body", "nbody"), ("joint", "njnt"), ("geom", "ngeom"), ("site", "nsite"), ("camera", "ncam"),
+        ("light", "nlight"), ("texture", "ntex"), ("material", "nmat"), ("equality", "neq"),
+        ("tendon", "ntendon"), ("actuator", "nu"), ("sensor", "nsensor"),
+    ]  # fmt: skip
+    for kind, size in kinds:
+        for index in range(getattr(model, size)):
+            assert model.id2name(index, kind), f"{domain}-{task}: unnamed {kind} {index}"
+    assert model.ncam >= 2
+    for camera in ("side", "front", "perspective"):
+        model.name2id(camera, "camera")
+
+
+#: random steps per task in CI: 1000 on the bundle; 200 on the arm (100 physics steps each at
+#: ~12 000/s), whose 1000-step run is in bench/bench_suite.py (random_steps)
+RANDOM_STEPS = {"bundle": 1000, "arm": 200}
+
+
+@pytest.mark.parametrize("domain,task", TASKS)
+def test_spec_conformance_and_random_steps(domain, task):
+    """Spec conformance, reward and discount ranges, observations that change, and
+    ``RANDOM_STEPS`` of random actions (across episode ends) with MuJoCo's warning counters
+    still at zero."""
+    env = suite.load(domain, task, task_kwargs={"random": 3})
+    action_spec = env.action_spec()
+    assert action_spec.name == common.ACTION_NAME
+    np.testing.assert_array_equal(action_spec.minimum, 0.0)
+    np.testing.assert_array_equal(action_spec.maximum, 1.0)
+    assert action_spec.shape == (env.physics.model.nu,)
+    observation_spec = env.observation_spec()
+    policy = random_policy(action_spec, 3)
+    seen = {name: [] for name in observation_spec}
+    time_step = env.reset()
+    steps = 0
+    while True:
+        observation = dict(time_step.observation)
+        for name, spec in observation_spec.items():
+            value = observation.pop(name)
+            assert value.shape == spec.shape and value.dtype == spec.dtype, name
+            assert np.all(np.isfinite(value)), name
+            seen[name].append(value)
+        assert not observation, f"observations not in the spec: {list(observation)}"
+        if time_step.first():
+            assert time_step.reward is None and time_step.discount is None
+        else:
+            assert isinstance(time_step.reward, float) and 0.0 <= time_step.reward <= 1.0
+            assert isinstance(time_step.discount, float) and 0.0 <= time_step.discount <= 1.0
+        if steps == RANDOM_STEPS[domain]:
+            break
+        time_step = env.reset() if time_step.last() else env.step(policy(time_step))
+        steps += 0 if time_step.first() else 1
+    warnings = env.physics.data.warning.number
+    assert np.all(warnings == 0), f"MuJoCo warnings: {warnings}"
+    for name, values in seen.items():
+        stacked = np.array(values)
+        constant = np.all(stacked == stacked[0], axis=0)
+        assert not np.any(constant), f"{name} has constant elements over {steps} steps"
+
+
+@pytest.mark.parametrize("domain,task", TASKS)
+def test_deterministic_under_a_seed(domain, task):
+    first = list(trajectory(domain, task, seed=0))
+    second = list(trajectory(domain, task, seed=0))
+    assert len(first) == len(second)
+    for a, b in zip(first, second):
+        assert a.step_type == b.step_type and a.reward == b.reward and a.discount == b.discount
+        for key in a.observation:
+            np.testing.assert_array_equal(a.observation[key], b.observation[key], err_msg=key)
+    other = list(trajectory(domain, task, seed=1, episodes=1, steps=0))
+    assert not np.array_equal(other[0].observation["pressures"], first[0].observation["pressures"])
+
+
+@pytest.mark.parametrize("domain,task", TASKS)
+def test_physics_copy_steps_identically(domain, task):
+    env = suite.load(domain, task, task_kwargs={"random": 5})
+    env.reset()
+    env.step(np.full(env.action_spec().shape, 0.6))
+    copy = env.physics.copy()
+    assert type(copy) is type(env.physics)
+    for physics in (env.physics, copy):
+        physics.data.ctrl[:] = 0.4 * physics.rated_pressures_Pa()
+        physics.step(50)
+    np.testing.assert_array_equal(copy.tip_position(), env.physics.tip_position())
+    np.testing.assert_array_equal(copy.section_bends(), env.physics.section_bends())
+    np.testing.assert_array_equal(copy.muscle_pressures_Pa(), env.physics.muscle_pressures_Pa())
+
+
+@pytest.mark.parametrize("domain,task", TASKS)
+def test_reset_randomises_and_observations_do_not_share_memory(domain, task):
+    env = suite.load(domain, task, task_kwargs={"random": 42})
+    first = env.reset().observation
+    second = env.reset().observation
+    assert not all(np.array_equal(first[k], second[k]) for k in first)
+    assert env.physics.data.time == 0.0
+    after = env.step(np.zeros(env.action_spec().shape)).observation
+    for name, array in second.items():
+        assert not np.may_share_memory(array, after[name]), name
+
+
+@pytest.mark.parametrize("domain,task", TASKS)
+def test_environment_kwargs_pass_through(domain, task):
+    env = suite.load(domain, task, environment_kwargs={"flat_observation": True})
+    assert set(env.observation_spec()) == {control.FLAT_OBSERVATION_KEY}
+
+
+@pytest.mark.parametrize("domain,task", [("bundle", "reach"), ("arm", "push")])
+def test_visualize_reward_colours(domain, task):
+    env = suite.load(domain, task, task_kwargs={"random": 0}, visualize_reward=True)
+    env.reset()
+    time_step = env.step(np.full(env.action_spec().shape, 0.5))
+    colours = env.physics.named.model.mat_rgba
+    blend = float(np.clip(time_step.reward, 0, 1)) ** 4
+    for material in ("self", "effector", "target"):
+        expected = blend * colours[material + "_highlight"] + (1 - blend) * colours[material + "_default"]
+        np.testing.assert_allclose(colours[material], expected, atol=1e-6)  # float32 colours
+
+
+def test_pressure_lag_is_on_by_default_and_configurable():
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0})
+    env.reset()
+    before = env.physics.muscle_pressure_fractions()
+    env.step(np.ones(3))  # one 100 ms control step towards full pressure through a 50 ms lag
+    after = env.physics.muscle_pressure_fractions()
+    expected = 1.0 - (1.0 - before) * np.exp(-0.1 / 0.05)
+    np.testing.assert_allclose(after, expected, atol=1e-9)
+    instant = suite.load("bundle", "reach", task_kwargs={"random": 0, "arm_options": {"pressure_tau_s": 0.0}})
+    instant.reset()
+    instant.step(np.full(3, 0.7))
+    np.testing.assert_allclose(instant.physics.muscle_pressure_fractions(), 0.7)

@@ -1,0 +1,158 @@
+"""The suite's physics accessors, workspace and controllers against independent references:
+the muscle's own free length, the arm's own pressure reader, the constant-curvature statics,
+closed-form arc geometry. Plus the offscreen render (MUJOCO_GL=egl) and the CLI."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from efam_mujoco import arm, statics, suite
+from efam_mujoco.cli import main as efam_main
+from efam_mujoco.suite import arm_glue, controllers, workspace
+
+
+def settled_bundle(fractions, seconds=3.0):
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0, "arm_options": {"gravity": False}})
+    env.reset()
+    physics = env.physics
+    physics.set_pressure_fractions(fractions)
+    physics.step(int(seconds / physics.timestep()))
+    return env, physics
+
+
+def test_pressures_match_the_arm_reader():
+    env = suite.load("arm", "reach", task_kwargs={"random": 1})
+    env.reset()
+    env.step(np.linspace(0.1, 0.9, 9))
+    physics = env.physics
+    reference = arm.muscle_pressures(physics.model.ptr, physics.data.ptr)
+    np.testing.assert_array_equal(physics.muscle_pressures_Pa(), reference)
+
+
+def test_equal_pressures_without_gravity_give_a_straight_section_at_the_free_length():
+    fraction = 0.5
+    env, physics = settled_bundle(np.full(3, fraction))
+    muscle = env.task.arm_spec.sections[0].muscles[0]
+    free = muscle.free_length(fraction * env.task.arm_spec.max_pressure_Pa)
+    assert physics.section_lengths()[0] == pytest.approx(free, rel=2e-3)
+    assert np.abs(physics.section_bends()).max() < 0.01  # rad, still relaxing from the random start
+    np.testing.assert_allclose(physics.muscle_lengths(), free, rtol=2e-3)
+
+
+def test_section_bend_matches_constant_curvature_statics():
+    fractions = np.array([0.35, 0.5, 0.5])
+    env, physics = settled_bundle(fractions)
+    section = env.task.arm_spec.sections[0]
+    state, _ = statics.solve_section(section, fractions * env.task.arm_spec.max_pressure_Pa)
+    bx, by = physics.section_bends()[0]
+    assert math.hypot(bx, by) == pytest.approx(state.bend_angle_rad, abs=math.radians(1.5))
+    assert math.atan2(by, bx) == pytest.approx(state.bend_direction_rad, abs=math.radians(1.0))
+    # the tip site, measured in the base frame, against the arc's tip
+    tip = physics.to_base(physics.tip_position())
+    assert np.linalg.norm(tip - statics.cc_frame(state.arc_length_m, *state.curvature_xy_per_m)[0]) < 0.005
+
+
+def test_workspace_samples_are_reachable_unloaded_arcs():
+    spec = arm_glue.bundle_spec(gravity=False)
+    random = np.random.RandomState(0)
+    limits = workspace.WorkspaceLimits(max_bend_deg=80.0)
+    (muscles, radii, angles) = arm_glue.section_muscles(spec)[0]
+    for _ in range(5):
+        (s, kx, ky), fractions = workspace.sample_section_shape(
+            (muscles, radii, angles), spec.max_pressure_Pa, limits, random
+        )
+        assert np.all((fractions >= 0.15 - 1e-9) & (fractions <= 0.9 + 1e-9))
+        assert math.hypot(kx, ky) * s <= math.radians(80.0) + 1e-9
+        # each muscle at its own free length: the statics' rest tip is the arc's tip
+        pressures = fractions * spec.max_pressure_Pa
+        lengths = [m.free_length(p) for m, p in zip(muscles, pressures)]
+        np.testing.assert_allclose(
+            lengths, s * (1 - radii * (kx * np.cos(angles) + ky * np.sin(angles))), rtol=1e-4
+        )
+        tip, _ = arm_glue.reference_tip(spec, pressures)
+        np.testing.assert_allclose(tip, statics.cc_frame(s, kx, ky)[0], atol=2e-4)
+    with pytest.raises(ValueError, match="pressure_range"):
+        workspace.WorkspaceLimits(pressure_range=(0.9, 0.2))
+    ws = workspace.compute_workspace(arm_glue.bundle_spec(), samples=8, seed=1)
+    assert ws.tips_m.shape == (8, 3) and ws.radial_reach_m > 0.02
+
+
+def test_inverse_statics_meets_targets():
+    # gravity off: one arc through the target is exact (closed form against the statics solve)
+    spec = arm_glue.bundle_spec(gravity=False)
+    target, _ = workspace.sample_target(spec, np.random.RandomState(3))
+    seed = controllers.cc_arc_pressures(spec, target)
+    tip, _ = arm_glue.reference_tip(spec, seed * spec.max_pressure_Pa)
+    assert np.linalg.norm(tip - target) < 1e-3
+    # gravity on, three sections: the least-squares solve lands on the reference target
+    spec = arm_glue.arm_spec()
+    target, _ = workspace.sample_target(
+        spec, np.random.RandomState(4), workspace.WorkspaceLimits(max_bend_deg=60)
+    )
+    solution = controllers.inverse_statics(spec, target)
+    assert solution.error_m(target) < 1e-3
+    assert solution.jacobian_m.shape == (3, 9)
+
+
+def test_controller_reaches_and_random_does_not():
+    """Two bundle episodes and one arm episode (the 50-episode figures: bench/bench_suite.py)."""
+    for domain, seeds, radius in (("bundle", (0, 1), 0.01), ("arm", (0,), 0.02)):
+        for seed in seeds:
+            env = suite.load(domain, "reach", task_kwargs={"random": seed})
+            _, success, error = controllers.run_episode(env, controllers.InverseStaticsController(env))
+            assert success and error < radius, (domain, seed, error)
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0})
+    _, success, error = controllers.run_episode(env, controllers.RandomPolicy(env, seed=0))
+    assert not success and error > 0.01
+
+
+RENDER = """
+import numpy as np
+from efam_mujoco import suite
+for domain in ("bundle", "arm"):
+    env = suite.load(domain, "push", task_kwargs={"random": 0})
+    env.reset()
+    for camera in ("side", "front", "perspective"):
+        image = env.physics.render(120, 160, camera_id=camera)
+        assert image.shape == (120, 160, 3)
+        assert image.std() > 10 and 20 < image.mean() < 235, (domain, camera, image.mean(), image.std())
+print("rendered")
+"""
+
+
+def test_render_headless_with_egl():
+    env = {**os.environ, "MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}
+    child = subprocess.run(
+        [sys.executable, "-c", RENDER], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert child.returncode == 0 and "rendered" in child.stdout, child.stderr[-2000:]
+
+
+def test_cli_lists_and_refuses(capsys):
+    assert efam_main(["suite", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "bundle-reach  (benchmarking)" in out and "arm-reach_payload  (extra)" in out
+    assert efam_main(["suite", "--domain", "octopus"]) == 2
+    assert "no task octopus-reach" in capsys.readouterr().err
+    assert efam_main(["suite", "--task", "extend", "--episodes", "1"]) == 0
+    assert "bundle-extend               random: success" in capsys.readouterr().out
+
+
+def test_track_target_velocity_is_the_derivative_of_its_path():
+    env = suite.load("bundle", "track", task_kwargs={"random": 2})
+    env.reset()
+    task = env.task
+    for t in (0.0, 1.3, 4.0):
+        position, velocity = task.target_at(t)
+        h = 1e-5
+        ahead, _ = task.target_at(t + h)
+        behind, _ = task.target_at(t - h)
+        np.testing.assert_allclose(velocity, (ahead - behind) / (2 * h), atol=1e-6)
+    # a closed loop: back where it started after one period
+    np.testing.assert_allclose(task.target_at(task.period_s)[0], task.target_at(0.0)[0], atol=1e-9)
