@@ -61,6 +61,7 @@ class BundleReport:
     notes: tuple = ()
 
     def to_dict(self) -> dict:
+        """The report as plain JSON types (SI units, keys with units)."""
         return {
             "muscles": self.muscles,
             "radius_m": self.radius_m,

@@ -60,10 +60,12 @@ class Tubing:
 
     @property
     def wall_m(self) -> float:
+        """Wall thickness of the tubing (m)."""
         return (self.outer_diameter_m - self.inner_diameter_m) / 2
 
     @property
     def section_m2(self) -> float:
+        """Cross-section area of the tubing wall (m^2)."""
         return math.pi / 4 * (self.outer_diameter_m**2 - self.inner_diameter_m**2)
 
 
@@ -97,6 +99,7 @@ class Latex:
 
     @property
     def strain_limit(self) -> float:
+        """Largest admissible bladder strain: elongation at break over the safety factor."""
         return self.elongation_at_break / self.strain_safety_factor
 
 

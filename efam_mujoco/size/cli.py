@@ -97,6 +97,7 @@ def register_cli(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``efam size`` with parsed arguments; returns the exit status."""
     if args.payload and args.bundle is None:
         raise ValueError(
             "--payload (kg) applies to a bundle: add --bundle M, or add the payload's weight to --force"

@@ -52,9 +52,11 @@ class Check:
 
     @property
     def passed(self) -> bool:
+        """Whether the check holds (a warning counts as passed)."""
         return self.status != FAIL
 
     def to_dict(self) -> dict:
+        """The check as plain JSON types."""
         return {
             "status": self.status,
             "value": self.value,
@@ -108,6 +110,7 @@ def euler_load(muscle: Muscle, pressure_Pa: float, length_factor: float) -> floa
 
 
 def performance(muscle: Muscle, request: Request, catalogue: Catalogue) -> Performance:
+    """What the muscle delivers for the request: forces at the required stroke, blocked force, free stroke and strain range."""
     P = request.pressure_Pa
     rest = muscle.rest_length_m
     free = float(muscle.free_length(P))

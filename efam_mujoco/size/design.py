@@ -54,6 +54,7 @@ class Fitting:
 
 
 def fitting_for(tubing: Tubing, rules: Rules) -> Fitting:
+    """The end fitting (channel and clamp length) that the manufacturing rules give for a tubing size."""
     core = rules.fitting_core_per_bladder_inner_diameter * tubing.inner_diameter_m
     channel = core + 2 * (rules.thread_thickness_m + rules.clamp_gap_per_wall * tubing.wall_m)
     length = rules.clamp_length_per_bladder_outer_diameter * tubing.outer_diameter_m
@@ -62,6 +63,7 @@ def fitting_for(tubing: Tubing, rules: Rules) -> Fitting:
 
 
 def rest_diameter(tubing: Tubing, rules: Rules) -> float:
+    """The resting outer diameter of a muscle made from this tubing (bladder plus sleeve)."""
     return (1 + rules.diameter_growth) * tubing.outer_diameter_m
 
 

@@ -36,6 +36,7 @@ class Relaxation:
 
     @property
     def message(self) -> str:
+        """One sentence telling the user what to change and by how much."""
         if self.requirement == "--unguided":
             return "guide the muscle (drop --unguided: a guide tube, as the paper's test; a search finds a design)"
         verb = "raise" if self.achievable > self.requested else "lower"
@@ -46,6 +47,7 @@ class Relaxation:
         )
 
     def to_dict(self) -> dict:
+        """The relaxation as plain JSON types."""
         return {
             "requirement": self.requirement, "requested": self.requested, "achievable": self.achievable,
             "unit": self.unit, "change_pct": None if math.isnan(self.change_pct) else self.change_pct, "confirmed": self.confirmed, "message": self.message,
@@ -64,6 +66,7 @@ class ClosestPoint:
     muscle: Muscle | None = None  # the closest design's muscle (for the figure; not in JSON)
 
     def to_dict(self) -> dict:
+        """The closest achievable point as plain JSON types (without the muscle object)."""
         return {k: v for k, v in self.__dict__.items() if k != "muscle"}
 
 

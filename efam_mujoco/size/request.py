@@ -82,6 +82,7 @@ class Request:
 
     @property
     def muscles(self) -> int:
+        """Muscles sharing the load: the bundle size, or 1 for a single muscle."""
         return self.bundle or 1
 
     @property
@@ -91,4 +92,5 @@ class Request:
 
     @property
     def muscle_blocked_force_N(self) -> float | None:
+        """Blocked force each muscle must give (N), or None when no blocked force is asked."""
         return None if self.blocked_force_N is None else self.blocked_force_N / self.muscles

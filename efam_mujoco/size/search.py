@@ -49,17 +49,21 @@ class Design:
 
     @property
     def mass_kg(self) -> float:
+        """Total mass of the muscle (kg): bladder, sleeve and fittings."""
         return sum(self.masses.values())
 
     @property
     def feasible(self) -> bool:
+        """Whether every named constraint holds."""
         return all(c.passed for c in self.checks)
 
     @property
     def binding(self) -> con.Check | None:
+        """The constraint with the smallest margin (None when there are no checks)."""
         return con.binding(self.checks)
 
     def to_dict(self) -> dict:
+        """The design as plain JSON types: parts, Table 2 parameters, margins and masses."""
         g = self.geometry
         b = self.binding
         out = {
@@ -114,10 +118,12 @@ class SizingResult:
 
     @property
     def feasible(self) -> bool:
+        """Whether at least one design meets every requirement."""
         return bool(self.designs)
 
     @property
     def best(self) -> Design | None:
+        """The best-ranked feasible design, or None."""
         return self.designs[0] if self.designs else None
 
     def to_dict(self, top: int | None = None) -> dict:

@@ -25,10 +25,12 @@ class Pair:
 
     @property
     def relative_difference(self) -> float:
+        """|MuJoCo - analytic| / |analytic|."""
         scale = max(abs(self.analytic), 1e-12)
         return abs(self.mujoco - self.analytic) / scale
 
     def to_dict(self) -> dict:
+        """The pair as plain JSON types."""
         return {
             "analytic": self.analytic,
             "mujoco": self.mujoco,
@@ -49,9 +51,11 @@ class Verification:
 
     @property
     def max_relative_difference(self) -> float:
+        """The largest relative analytic-vs-MuJoCo difference over all compared quantities."""
         return max(p.relative_difference for p in self.pairs().values())
 
     def pairs(self) -> dict[str, Pair]:
+        """The compared quantities by name, each an analytic/MuJoCo pair."""
         return {
             "force_at_stroke_N": self.force_at_stroke_N,
             "blocked_force_N": self.blocked_force_N,
@@ -60,6 +64,7 @@ class Verification:
         }
 
     def to_dict(self) -> dict:
+        """The verification as plain JSON types."""
         out = {k: v.to_dict() for k, v in self.pairs().items()}
         out["meets_request_in_mujoco"] = self.meets_request
         return out

@@ -132,6 +132,7 @@ def register_cli(subparsers) -> None:
 
 
 def main(argv=None) -> int:
+    """Run the suite evaluation as a script (``python -m efam_mujoco.suite.cli``); returns the exit status."""
     parser = argparse.ArgumentParser(
         prog="python -m efam_mujoco.suite.cli", description=__doc__.splitlines()[0]
     )

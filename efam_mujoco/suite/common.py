@@ -255,6 +255,7 @@ class EfamPhysics(mujoco.Physics):
 
     @property
     def layout(self) -> _Layout:
+        """Model indices (bodies, sites, actuators, sensors) the accessors use, computed once per model."""
         layout = self.__dict__.get("_efam_layout")
         if layout is None:
             layout = self.__dict__["_efam_layout"] = _Layout(self.model)
@@ -262,6 +263,7 @@ class EfamPhysics(mujoco.Physics):
 
     @property
     def views(self) -> _Views:
+        """Cached numpy views into the current mjData, rebuilt after a reload or copy."""
         views = self.__dict__.get("_efam_views")
         if views is None or views.owner is not self._data:  # new data after a reload or copy
             views = self.__dict__["_efam_views"] = _Views(self.data)
@@ -299,6 +301,7 @@ class EfamPhysics(mujoco.Physics):
         return self.views.mocap_pos[self.layout.target_mocap].copy()
 
     def set_target_position(self, position) -> None:
+        """Move the target marker (mocap body) to ``position`` (world frame, m)."""
         self.views.mocap_pos[self.layout.target_mocap] = position
 
     def tip_to_target_distance(self) -> float:

@@ -71,6 +71,7 @@ class InverseStatics:
     seed: np.ndarray  # the one-arc seed
 
     def error_m(self, target_in_base) -> float:
+        """Distance (m) from the reference tip of this solution to ``target_in_base``."""
         return float(np.linalg.norm(self.tip_m - np.asarray(target_in_base)))
 
 

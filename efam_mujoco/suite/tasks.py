@@ -229,6 +229,7 @@ class Extend(common.EfamTask):
         return obs
 
     def length_errors(self, physics) -> np.ndarray:
+        """Section lengths minus their targets (m), one per section."""
         return physics.section_lengths() - self.target_lengths
 
     def get_reward(self, physics):
@@ -240,6 +241,7 @@ class Extend(common.EfamTask):
         ) / len(errors)
 
     def success(self, physics) -> bool:
+        """Whether every section length is within the tolerance of its target."""
         return bool(np.all(np.abs(self.length_errors(physics)) <= self.tolerance_m))
 
 
@@ -303,5 +305,6 @@ class Push(common.EfamTask):
         return rewards.tolerance(error, bounds=(0.0, bound), margin=self.target_force_N, sigmoid="long_tail")
 
     def success(self, physics) -> bool:
+        """Whether the plate force is within the tolerance of the target force."""
         bound = max(0.5, self.tolerance_fraction * self.target_force_N)
         return abs(physics.plate_force() - self.target_force_N) <= bound
