@@ -26,12 +26,12 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..recordings import Recording
-from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
-from .locate import locate
-from .model import Refit, linearise, refit
 from .confidence import CALIBRATION, OUTSIDE, Verdict, blocks, bootstrap, verdict
 from .datadriven import Correction, correction
 from .design import recommend, stroke_speed
+from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
+from .locate import locate
+from .model import Refit, linearise, refit
 from .segment import Labels, label
 from .select import Engine, Fit, pays, search
 
@@ -75,6 +75,8 @@ class Diagnosis:
     unexplained: dict = field(default_factory=dict)  # structured residual left, where
     next_experiment: dict | None = None  # for an ambiguous answer (``design``)
     structure: str = ""  # the test's structure and the held-out rule, in words
+    heldout_residual_before: np.ndarray | None = field(repr=False, default=None)  # per sample, N
+    heldout_residual_after: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def answer(self) -> str:
@@ -190,13 +192,22 @@ def diagnose(
     block = blocks(labels, ctx.n)
     heldout = {"none": base.heldout_residual} | {k: f.heldout_residual for k, f in singles.items()}
     raw = bootstrap({k: v for k, v in heldout.items() if v is not None}, block,
-                    concentration=CALIBRATION.concentration)  # fmt: skip
-    best_single = min(singles, key=lambda k: raw.get(k, 0.0) * 0 + singles[k].heldout_rms) if singles else None
+                    concentration=CALIBRATION.concentration, tie_margin=CALIBRATION.tie_margin)  # fmt: skip
+    best_single = min(singles, key=lambda k: singles[k].heldout_rms) if singles else None
     kept = _agree(kept, raw, singles, engine, base, noise)
     final = kept[-1] if kept else base
-    corr = correction(engine, final if kept else (singles[best_single] if best_single else base))
+    corr_none = correction(engine, base)
+    corr = correction(engine, final) if kept else corr_none
+    corr_best = (
+        corr
+        if not best_single or (kept and kept[0].names[0] == best_single)
+        else correction(engine, singles[best_single])
+    )
     cut = notes.get(best_single, {}).get("excess_cut", 0.0) if best_single else 0.0
-    judged = verdict(raw, cut, corr.gain, int(block.max()) + 1)
+    excess = max(1.0 - noise**2 / max(base.heldout_rms**2, 1e-300), 0.0)
+    pair = tuple(kept[-1].names[:2]) if len(kept) >= 2 else None
+    judged = verdict(raw, cut, corr_best.gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
+                     pair=pair)  # fmt: skip
     unexplained = _unexplained(ctx, labels, force - final.prediction, noise, corr)
     design = None
     if judged.ambiguous and next_experiment and OUTSIDE not in judged.contenders:
@@ -242,6 +253,7 @@ def diagnose(
         sources=[str(r.meta.get("source", "")) for r in recordings],
         verdict=judged, correction=corr, unexplained=unexplained, next_experiment=design,
         structure=labels.describe(),
+        heldout_residual_before=base.heldout_residual, heldout_residual_after=final.heldout_residual,
     )  # fmt: skip
 
 

@@ -59,6 +59,10 @@ class Calibration:
     a: float = 0.0  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
     b: float = 6.0
     c: float = -20.0
+    tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart
+    an: float = 3.0  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
+    bn: float = 0.0
+    cn: float = -20.0
 
 
 CALIBRATION = Calibration()
@@ -83,21 +87,40 @@ def blocks(labels: Labels, n: int) -> np.ndarray:
 
 
 def bootstrap(residuals: dict[str, np.ndarray], block: np.ndarray, margin: float = MIN_GAIN,
-              concentration: float = 1.0, seed: int = 0, draws: int = DRAWS) -> dict[str, float]:  # fmt: skip
+              concentration: float = 1.0, seed: int = 0, draws: int = DRAWS,
+              tie_margin: float = 0.0) -> dict[str, float]:  # fmt: skip
     """Fraction of Bayesian-bootstrap draws over blocks in which each hypothesis has the smallest
     weighted held-out squared error (effects scaled by 1/(1 - margin)^2: they must beat ``none``
-    by the relevance margin). ``residuals`` maps hypothesis -> held-out residual per sample."""
+    by the relevance margin). A draw in which the runner-up's held-out RMS is within
+    ``tie_margin`` of the winner's is a tie: half a win to each. ``residuals`` maps hypothesis ->
+    held-out residual per sample."""
     names = list(residuals)
     nb = int(block.max()) + 1
-    sse = np.stack([np.bincount(block, weights=np.asarray(residuals[h], float) ** 2, minlength=nb) for h in names])
+    sse = np.stack(
+        [np.bincount(block, weights=np.asarray(residuals[h], float) ** 2, minlength=nb) for h in names]
+    )
     keep = np.bincount(block, minlength=nb) > 0
     sse = sse[:, keep]
     penalty = np.array([1.0 if h == "none" else 1.0 / (1.0 - margin) ** 2 for h in names])
     rng = np.random.default_rng(seed)
     w = rng.gamma(concentration, 1.0, size=(draws, sse.shape[1]))
     totals = (w @ sse.T) * penalty  # draws x hypotheses
-    wins = np.bincount(np.argmin(totals, axis=1), minlength=len(names))
+    order = np.argsort(totals, axis=1)
+    first, second = order[:, 0], order[:, 1] if len(names) > 1 else order[:, 0]
+    rows = np.arange(draws)
+    # a draw whose runner-up is within the tie margin cannot tell the two apart: half a win each
+    tie = totals[rows, second] <= totals[rows, first] * (1.0 + tie_margin) ** 2
+    wins = np.bincount(first, weights=np.where(tie, 0.5, 1.0), minlength=len(names))
+    wins += np.bincount(second[tie], minlength=len(names)) * 0.5
     return {h: float(wins[i] / draws) for i, h in enumerate(names)}
+
+
+def none_probability(excess: float, dd_gain: float, cal: Calibration = CALIBRATION) -> float:
+    """Probability that nothing is missing, when the model alone predicts best: it falls with the
+    share of the held-out mean square above the noise floor (``excess``) and with the held-out
+    gain a data-driven correction still finds."""
+    z = cal.an + cal.bn * float(np.clip(excess, 0, 1)) + cal.cn * float(np.clip(dd_gain, 0, 1))
+    return 1.0 / (1.0 + math.exp(-z))
 
 
 def named_physics_probability(excess_cut: float, dd_gain: float, cal: Calibration = CALIBRATION) -> float:
@@ -121,10 +144,20 @@ class Verdict:
     excess_cut: float
     dd_gain: float
     n_blocks: int
+    excess: float = 0.0
+    dd_gain_none: float = 0.0
+    both: bool = False  # the two contenders are both needed (the pair pays over either alone)
 
     def words(self) -> str:
         top = sorted(self.probabilities.items(), key=lambda kv: -kv[1])[:4]
         spread = ", ".join(f"{h} {p:.2f}" for h, p in top if p >= 0.005)
+        if self.both:
+            a, b = self.contenders
+            return (
+                f"Answer: {a} and {b}, both needed (the pair predicts held-out data better than either "
+                f"alone; p = {self.probability:.2f} that the best single explanation is one of them). "
+                f"Probabilities: {spread}."
+            )
         if self.confident:
             return f"Answer: {self.answer} (p = {self.probability:.2f}). Probabilities: {spread}."
         return (
@@ -137,21 +170,28 @@ class Verdict:
         return {
             "probabilities": self.probabilities, "bootstrap_win_fraction": self.raw, "answer": self.answer,
             "probability": self.probability, "confident": self.confident, "ambiguous": self.ambiguous,
-            "contenders": self.contenders, "physics_probability": self.physics_probability,
+            "contenders": self.contenders, "both_needed": self.both, "physics_probability": self.physics_probability,
             "excess_cut": self.excess_cut, "datadriven_gain": self.dd_gain, "blocks": self.n_blocks,
+            "excess_over_noise": self.excess, "datadriven_gain_on_none": self.dd_gain_none,
         }  # fmt: skip
 
 
 def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: int,
-            cal: Calibration = CALIBRATION) -> Verdict:  # fmt: skip
-    """Probabilities of none / each effect / outside the library, the answer, and the doubt."""
+            cal: Calibration = CALIBRATION, excess: float = 0.0, dd_gain_none: float = 0.0,
+            pair: tuple[str, str] | None = None) -> Verdict:  # fmt: skip
+    """Probabilities of none / each effect / outside the library, the answer, and the doubt.
+    ``excess_cut``, ``dd_gain``: of the best library term; ``excess``, ``dd_gain_none``: of the
+    model alone (share of its held-out mean square above the noise; the data-driven gain on it).
+    ``pair``: two effects that ``select`` kept together (the pair paid over the first alone): when
+    they are the two contenders, the answer is both, not an ambiguity."""
     q = named_physics_probability(excess_cut, dd_gain, cal)
+    q0 = none_probability(excess, dd_gain_none, cal)
     p_none = raw.get("none", 0.0)
-    probs = {"none": p_none}
+    probs = {"none": p_none * q0}
     effects = {h: p for h, p in raw.items() if h != "none"}
     for h, p in effects.items():
         probs[h] = p * q
-    probs[OUTSIDE] = sum(effects.values()) * (1.0 - q)
+    probs[OUTSIDE] = sum(effects.values()) * (1.0 - q) + p_none * (1.0 - q0)
     total = sum(probs.values()) or 1.0
     probs = {h: p / total for h, p in probs.items()}
     ranked = sorted(probs.items(), key=lambda kv: -kv[1])
@@ -159,8 +199,13 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     second, p2 = ranked[1] if len(ranked) > 1 else ("", 0.0)
     confident = p1 >= CONFIDENT
     ambiguous = (not confident) and p1 + p2 >= PAIR
+    both = bool(pair and {answer, second} == set(pair) and not confident)
+    if both:
+        p1 = p1 + p2
+        confident, ambiguous = p1 >= CONFIDENT, p1 < CONFIDENT
     return Verdict(
-        probabilities=probs, raw=raw, answer=answer, probability=p1, confident=confident,
-        ambiguous=ambiguous, contenders=[answer, second] if ambiguous else [answer],
+        probabilities=probs, raw=raw, answer=answer, probability=p1, confident=confident, both=both,
+        ambiguous=ambiguous, contenders=[answer, second] if (ambiguous or both) else [answer],
         physics_probability=q, excess_cut=excess_cut, dd_gain=dd_gain, n_blocks=n_blocks,
+        excess=excess, dd_gain_none=dd_gain_none,
     )  # fmt: skip

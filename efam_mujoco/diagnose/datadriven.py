@@ -10,8 +10,9 @@ from 0.05 to 30 s (memory), the time, and the distance below the running maximum
 
 The correction is fitted jointly with the model's parameter corrections and the library terms
 kept (``Engine`` normal equations): forward stepwise selection (orthogonal matching pursuit) on
-each fold's TRAINING blocks alone, a feature added while it lowers the training error by at least
-``MIN_STEP`` of it, at most ``MAX_TERMS``; the held-out RMS pools the folds. The held-out data
+each fold's TRAINING folds alone, the number of features (at most ``MAX_TERMS``) chosen by an
+inner cross-validation over those training folds (the fewest within ``MIN_STEP`` of the best);
+the held-out RMS pools the folds. The held-out data
 choose nothing: not the features, not their number, not their coefficients. The result is reported
 as data-driven, never under a physical name.
 """
@@ -22,12 +23,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve
 
 from .effects import Context, get, lag
 from .select import Engine, Fit
 
 MAX_TERMS = 10
 MIN_STEP = 0.01
+RIDGE = 0.02  # of a feature's mean Gram diagonal: shrinks a well-seen feature by ~2 %
 
 
 @dataclass
@@ -109,7 +112,10 @@ def features(ctx: Context) -> tuple[np.ndarray, list[str]]:
                 continue
             d = u - lag(t, u, tau, ctx.starts)
             add(d, f"{name} - lag({name}, {tau:g} s)")
-            add(d * (p if name == "strain" else x), f"({name} - lag({name}, {tau:g} s)) * {'P' if name == 'strain' else 'strain'}")
+            add(
+                d * (p if name == "strain" else x),
+                f"({name} - lag({name}, {tau:g} s)) * {'P' if name == 'strain' else 'strain'}",
+            )
         del scale
     add(t / max(t.max(), 1e-9), "time")
     add((t / max(t.max(), 1e-9)) ** 2, "time^2")
@@ -121,65 +127,106 @@ def features(ctx: Context) -> tuple[np.ndarray, list[str]]:
     return np.column_stack(cols) * ctx.engaged[:, None], names
 
 
+def _path(G, b, yy, k0: int, max_terms: int) -> list[tuple[list[int], np.ndarray]]:
+    """Orthogonal matching pursuit on normal equations: the model's columns (0..k0-1) always in,
+    then the feature that lowers the residual sum of squares most, one at a time. Returns
+    [(column indices, coefficients)] for 0..max_terms features (least squares, a tiny ridge)."""
+    ridge_all = RIDGE * float(np.mean(np.diag(G))) + 1e-300
+    idx = list(range(k0))
+    out = []
+    m = G.shape[0]
+    for _ in range(max_terms + 1):
+        # a ridge on the features (unit RMS over the whole test): a feature whose training data
+        # are few (a bump where the training folds hardly go) stays small where it is unseen
+        Ga = (
+            G[np.ix_(idx, idx)]
+            + ridge_all * np.diag([0.0 if i < k0 else 1.0 for i in idx])
+            + 1e-10 * ridge_all * np.eye(len(idx))
+        )
+        try:
+            c = cho_factor(Ga)
+        except np.linalg.LinAlgError:
+            break
+        theta = cho_solve(c, b[idx])
+        out.append((list(idx), theta))
+        rest = [j for j in range(k0, m) if j not in idx]
+        if len(out) > max_terms or not rest:
+            break
+        Gra = G[np.ix_(rest, idx)]
+        r = b[rest] - Gra @ theta
+        d = np.diag(G)[rest] - np.einsum("ij,ji->i", Gra, cho_solve(c, Gra.T))
+        gain = r * r / (np.maximum(d, 0.0) + ridge_all)
+        idx = idx + [rest[int(np.argmax(gain))]]
+    return out
+
+
+def _rss(G, b, yy, idx, theta) -> float:
+    Ga = G[np.ix_(idx, idx)]
+    return float(yy - 2 * theta @ b[idx] + theta @ Ga @ theta)
+
+
 def correction(engine: Engine, fit: Fit) -> Correction:
-    """The data-driven correction on top of ``fit`` (the model with its kept library terms)."""
+    """The data-driven correction on top of ``fit`` (the model with its kept library terms).
+
+    For each held-out fold, the model's parameter corrections and the kept terms are fitted on the
+    training folds only (bounded, as in ``select``); the features are then fitted to that model's
+    residual on the same training folds, their number chosen by an inner leave-one-fold-out over
+    those training folds (the fewest within ``MIN_STEP`` of the best inner error); the held-out
+    fold scores both, before and after the correction."""
     effects = [get(name) for name in fit.names]
     shapes = [fit.shapes[name] for name in fit.names]
-    fixed, C, clo, chi, _ = engine._design(effects, shapes)
+    fixed, C, clo, chi, owner = engine._design(effects, shapes)
     Xf, names = engine.ctx.cached("dd_features", lambda: features(engine.ctx))
     X = Xf[engine.order]
     A0 = np.hstack([engine.Jn, C])
-    lo0 = np.r_[engine.jlo * engine.Jscale, clo]
-    hi0 = np.r_[engine.jhi * engine.Jscale, chi]
-    A = np.hstack([A0, X])
+    lo = np.r_[engine.jlo * engine.Jscale, clo]
+    hi = np.r_[engine.jhi * engine.Jscale, chi]
     y = engine.y - fixed
-    G, b, yy = engine._blocks(A, y)
-    k0 = A0.shape[1]
-    lo = np.r_[lo0, np.full(X.shape[1], -np.inf)]
-    hi = np.r_[hi0, np.full(X.shape[1], np.inf)]
+    G0, b0, _ = engine._blocks(A0, y)
+    GX = np.stack([X[s].T @ X[s] for s in engine.slices])
+    K = len(engine.slices)
 
-    def select(Gt, bt, yyt):
-        active: list[int] = []
-        idx = list(range(k0))
-        theta = engine._solve(Gt[np.ix_(idx, idx)], bt[idx], lo[idx], hi[idx])
-        rss = engine._rss(Gt[np.ix_(idx, idx)], bt[idx], yyt, theta)
-        while len(active) < MAX_TERMS:
-            best = None
-            for j in range(X.shape[1]):
-                if j in active:
-                    continue
-                trial = idx + [k0 + j]
-                th = engine._solve(Gt[np.ix_(trial, trial)], bt[trial], lo[trial], hi[trial])
-                r = engine._rss(Gt[np.ix_(trial, trial)], bt[trial], yyt, th)
-                if best is None or r < best[0]:
-                    best = (r, j, th)
-            if best is None or best[0] > (1.0 - MIN_STEP) * rss:
-                break
-            rss, j, theta = best
-            active.append(j)
-            idx = idx + [k0 + j]
-        return idx, theta, active
+    def residual_blocks(theta):
+        r = y - A0 @ theta
+        return np.stack([X[s].T @ r[s] for s in engine.slices]), np.array(
+            [r[s] @ r[s] for s in engine.slices]
+        )
 
-    Gt, bt, yyt = G.sum(0), b.sum(0), yy.sum()
-    heldout_before = heldout_after = 0.0
+    def choose(train: list[int], bX, rr) -> int:
+        """Number of features by leave-one-fold-out inside ``train``."""
+        err = np.zeros(MAX_TERMS + 1)
+        for j in train:
+            inner = [i for i in train if i != j]
+            path = _path(GX[inner].sum(0), bX[inner].sum(0), rr[inner].sum(), 0, MAX_TERMS)
+            for m in range(MAX_TERMS + 1):
+                idx, th = path[min(m, len(path) - 1)]
+                err[m] += _rss(GX[j], bX[j], rr[j], idx, th)
+        best = float(err.min())
+        return int(np.flatnonzero(err <= best * (1.0 + MIN_STEP))[0])
+
+    before = after = 0.0
     fold_terms = []
-    base = list(range(k0))
-    if len(engine.slices) > 1:
-        for k in range(len(engine.slices)):
-            Gk, bk = Gt - G[k], bt - b[k]
-            th0 = engine._solve(Gk[np.ix_(base, base)], bk[base], lo[base], hi[base])
-            heldout_before += engine._rss(G[k][np.ix_(base, base)], b[k][base], yy[k], th0)
-            idx, theta, active = select(Gk, bk, yyt - yy[k])
-            heldout_after += engine._rss(G[k][np.ix_(idx, idx)], b[k][idx], yy[k], theta)
-            fold_terms.append([names[j] for j in active])
-    idx, theta, active = select(Gt, bt, yyt)
+    if K > 2:
+        for k in range(K):
+            train = [i for i in range(K) if i != k]
+            theta = engine._solve(G0[train].sum(0), b0[train].sum(0), lo, hi)
+            theta = engine._fill_unseen(theta, G0[train].sum(0), owner, engine.Jn.shape[1])
+            bX, rr = residual_blocks(theta)
+            m = choose(train, bX, rr)
+            idx, th = _path(GX[train].sum(0), bX[train].sum(0), rr[train].sum(), 0, m)[-1]
+            before += rr[k]
+            after += _rss(GX[k], bX[k], rr[k], idx, th)
+            fold_terms.append([names[j] for j in idx])
+    theta = engine._solve(G0.sum(0), b0.sum(0), lo, hi)
+    bX, rr = residual_blocks(theta)
+    m = choose(list(range(K)), bX, rr) if K > 2 else 0
+    active, coef = _path(GX.sum(0), bX.sum(0), rr.sum(), 0, m)[-1]
     dd = np.zeros(engine.n)
     if active:
-        dd_sorted = X[:, active] @ theta[k0:]
-        dd[engine.order] = dd_sorted
-    coef = [float(c) for c in theta[k0:]]  # N per unit-RMS feature
+        dd[engine.order] = X[:, active] @ coef
     return Correction(
-        heldout_rms_before_N=math.sqrt(heldout_before / engine.n) if fold_terms else fit.heldout_rms,
-        heldout_rms_after_N=math.sqrt(heldout_after / engine.n) if fold_terms else fit.heldout_rms,
-        terms=[names[j] for j in active], coefficients_N=coef, fold_terms=fold_terms, prediction=dd,
+        heldout_rms_before_N=math.sqrt(before / engine.n) if fold_terms else fit.heldout_rms,
+        heldout_rms_after_N=math.sqrt(after / engine.n) if fold_terms else fit.heldout_rms,
+        terms=[names[j] for j in active], coefficients_N=[float(c) for c in coef],
+        fold_terms=fold_terms, prediction=dd,
     )  # fmt: skip

@@ -25,7 +25,6 @@ predicted difference in newtons, its peak, and the noise floor.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,7 +81,11 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
         p.go(3)
         p.go(stroke, L=L_lo)
         p.go(3)
-    out.append(p.done("repeat_top", f"at {P_top / 1e3:.0f} kPa, two slow strokes {L_lo * 1e3:.0f}-{L_hi * 1e3:.0f} mm"))
+    out.append(
+        p.done(
+            "repeat_top", f"at {P_top / 1e3:.0f} kPa, two slow strokes {L_lo * 1e3:.0f}-{L_hi * 1e3:.0f} mm"
+        )
+    )
     p = _Prog(L_lo)
     p.go(2)
     for f in (1.0, 2 / 3, 1 / 3):
@@ -92,7 +95,12 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
         p.go(3)
         p.go(stroke, L=L_lo)
         p.go(3)
-    out.append(p.done("descending", f"pressures {P_top / 1e3:.0f}, {2 * P_top / 3e3:.0f}, {P_top / 3e3:.0f} kPa in this order, one stroke each"))
+    out.append(
+        p.done(
+            "descending",
+            f"pressures {P_top / 1e3:.0f}, {2 * P_top / 3e3:.0f}, {P_top / 3e3:.0f} kPa in this order, one stroke each",
+        )
+    )
     p = _Prog(L_lo)
     p.go(2)
     p.go(0.001, P=P_top)
@@ -101,7 +109,12 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     p.go(60)
     p.go(stroke / 3, L=L_lo)
     p.go(30)
-    out.append(p.done("long_hold", f"at {P_top / 1e3:.0f} kPa, a stroke held 60 s at {L_hi * 1e3:.0f} mm, then 30 s back"))
+    out.append(
+        p.done(
+            "long_hold",
+            f"at {P_top / 1e3:.0f} kPa, a stroke held 60 s at {L_hi * 1e3:.0f} mm, then 30 s back",
+        )
+    )
     p = _Prog(L_lo)
     p.go(2)
     for f in (0.5, 1.0):
@@ -112,7 +125,12 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
             p.go(1)
             p.go(stroke / 4, L=L_lo)
             p.go(1)
-    out.append(p.done("fast", f"strokes 4x faster ({4 * v * 1e3:.0f} mm/s) at {P_top / 2e3:.0f} and {P_top / 1e3:.0f} kPa"))
+    out.append(
+        p.done(
+            "fast",
+            f"strokes 4x faster ({4 * v * 1e3:.0f} mm/s) at {P_top / 2e3:.0f} and {P_top / 1e3:.0f} kPa",
+        )
+    )
     L_mid = L_lo + 0.6 * (L_hi - L_lo)
     p = _Prog(L_lo)
     p.go(2)
@@ -122,13 +140,22 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     p.go(2)
     p.go(20, P=0.0)
     p.go(3)
-    out.append(p.done("ramp_at_length", f"isometric ramp 0-{P_top / 1e3:.0f}-0 kPa over 40 s at {L_mid * 1e3:.0f} mm"))
+    out.append(
+        p.done(
+            "ramp_at_length", f"isometric ramp 0-{P_top / 1e3:.0f}-0 kPa over 40 s at {L_mid * 1e3:.0f} mm"
+        )
+    )
     p = _Prog(L_lo)
     p.go(2)
     for k in list(range(1, 9)) + list(range(7, -1, -1)):
         p.go(0.001, P=P_top * k / 8)
         p.go(3)
-    out.append(p.done("staircase_rest", f"pressure staircase 8 steps to {P_top / 1e3:.0f} kPa and down, 3 s holds, at {L_lo * 1e3:.0f} mm"))
+    out.append(
+        p.done(
+            "staircase_rest",
+            f"pressure staircase 8 steps to {P_top / 1e3:.0f} kPa and down, 3 s holds, at {L_lo * 1e3:.0f} mm",
+        )
+    )
     p = _Prog(L_lo)
     p.go(2)
     p.go(0.001, P=P_top / 2)

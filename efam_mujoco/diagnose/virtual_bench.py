@@ -49,8 +49,10 @@ force_offset       ``constant`` (a load-cell zero, per file)
 
 **Outside the library** (``OUTSIDE``: no library name is right): ``strain_bump`` (a local
 buckling of the bladder: a pressure-scaled bump of force at one strain), ``sensor_nonlinearity``
-(the pressure transducer's calibration error, a sine in the pressure) and ``inertia`` (a 5-25 kg
-carriage on a compliant load cell: mass times acceleration with a lightly damped ring).
+(the pressure transducer's calibration error, a full period of a sine over the pressure range),
+``gas_heating`` (compression heats the gas: the muscle's pressure overshoots the supply's while
+it is pressurised, then cools back over 2-10 s) and, in the sinusoidal family only, ``inertia``
+(a 5-25 kg carriage on a compliant load cell: mass times acceleration with a lightly damped ring).
 """
 
 from __future__ import annotations
@@ -78,7 +80,7 @@ FORMS = {
     "softening": ("ogden_roxburgh",),
     "force_offset": ("constant",),
 }
-OUTSIDE = ("strain_bump", "sensor_nonlinearity", "inertia")
+OUTSIDE = ("strain_bump", "sensor_nonlinearity", "inertia", "gas_heating")
 MAX_SAMPLES = 30000
 P_ATM = 101325.0
 
@@ -219,7 +221,9 @@ def plan_isometric(rng, m) -> Plan:
 def plan_sinusoidal(rng, m) -> Plan:
     rest, top = _stroke_range(m, rng)
     span = (top - rest) / rest
-    levels = list(rng.choice([103.4, 206.8, 310.3, 413.7, 517.1], size=int(rng.integers(1, 4)), replace=False))
+    levels = list(
+        rng.choice([103.4, 206.8, 310.3, 413.7, 517.1], size=int(rng.integers(1, 4)), replace=False)
+    )
     kind = str(rng.choice(["sine", "random", "chirp"]))
     pieces_t, pieces_x, pieces_p = [0.0], [0.0], [0.0]
     t_now = rng.uniform(3, 6)
@@ -320,7 +324,9 @@ def regulator(t, setpoint, volume, rng, params) -> np.ndarray:
         v = (v + dt * wn * wn * (sp[i] - p)) / (1 + 2 * zeta * wn * dt + (wn * dt) ** 2)
         p += v * dt
         a[i] = p
-    out = a - gain * (setpoint + P_ATM) * rate + ripple * np.sin(2 * np.pi * f_ripple * t + rng.uniform(0, 6.3))
+    out = (
+        a - gain * (setpoint + P_ATM) * rate + ripple * np.sin(2 * np.pi * f_ripple * t + rng.uniform(0, 6.3))
+    )
     return np.maximum(out, 0.0)
 
 
@@ -451,7 +457,9 @@ def truth_tension(effect, form, rng, m, t, L, P, p_top, params) -> tuple[np.ndar
             if form == "power":
                 stretch = strain_top * load**expo
             else:  # crimp straightens (soft), then the thread itself (stiff)
-                stretch = strain_top * np.where(load < knee, load / knee * 0.7, 0.7 + 0.3 * (load - knee) / (1 - knee))
+                stretch = strain_top * np.where(
+                    load < knee, load / knee * 0.7, 0.7 + 0.3 * (load - knee) / (1 - knee)
+                )
             B = m.thread_length_m * (1.0 + stretch)
         params.update(thread_strain_at_top=strain_top, exponent=expo, knee=knee)
         return S._tension(m, P, L, thread=B) - base, P
@@ -483,7 +491,12 @@ def truth_tension(effect, form, rng, m, t, L, P, p_top, params) -> tuple[np.ndar
         params.update(transducer_error_Pa=a)
         # the muscle sees P_true; the transducer reads P_true + a sin(pi P / p_top): so the
         # muscle's pressure is the reading less that error (applied by the caller to the reading)
-        return np.zeros_like(t), -a * np.sin(np.pi * np.clip(P / p_top, 0, 1.2))
+        return np.zeros_like(t), -a * np.sin(2 * np.pi * np.clip(P / p_top, 0, 1.2))
+    if effect == "gas_heating":
+        k, tau = rng.uniform(0.08, 0.25), rng.uniform(2.0, 10.0)
+        params.update(heating=k, cooling_s=tau)
+        # compression heats the gas: the muscle's pressure overshoots the supply, then cools back
+        return np.zeros_like(t), k * (P - _lag1(t, P, tau))
     if effect == "inertia":
         mass, fn, zeta = rng.uniform(5, 25), rng.uniform(3, 12), rng.uniform(0.05, 0.2)
         acc = np.gradient(np.gradient(L, t), t)
@@ -538,14 +551,14 @@ def simulate(case: Case, plan: Plan, rng, force_noise_N: float | None = None) ->
     # effects that change the pressure the muscle sees act first, then the rest add tension
     for effect, form in case.effects:
         sub: dict = {}
-        if effect == "sensor_nonlinearity":
+        if effect in ("sensor_nonlinearity", "gas_heating"):
             _, error = truth_tension(effect, form, rng, m, t, L, P_tr, p_top, sub)
-            P_muscle = np.maximum(P_tr + error, 0.0)
+            P_muscle = np.maximum(P_muscle + error, 0.0)
         elif effect == "pressure_lag":
             _, P_muscle = truth_tension(effect, form, rng, m, t, L, P_muscle, p_top, sub)
         params[effect] = sub
     for effect, form in case.effects:
-        if effect in ("sensor_nonlinearity", "pressure_lag"):
+        if effect in ("sensor_nonlinearity", "gas_heating", "pressure_lag"):
             continue
         sub = {}
         dT, _ = truth_tension(effect, form, rng, m, t, L, P_muscle, p_top, sub)
@@ -589,8 +602,9 @@ def draw_case(seed: int, family: str | None = None, kind: str | None = None) -> 
     elif kind == "two":
         a, b = rng.choice(names, size=2, replace=False)
         effects = [(str(a), str(rng.choice(FORMS[a]))), (str(b), str(rng.choice(FORMS[b])))]
-    else:
-        effects = [(str(rng.choice(OUTSIDE)), "")]
+    else:  # the carriage's inertia only shows where the length accelerates (oscillating strokes)
+        options = OUTSIDE if family == "sinusoidal" else tuple(o for o in OUTSIDE if o != "inertia")
+        effects = [(str(rng.choice(options)), "")]
     muscle, base = S.random_truth_muscle(rng)
     return Case(seed=seed, family=family, effects=effects, base_name=base, muscle=muscle)
 
