@@ -48,7 +48,7 @@ MIN_GAIN = 0.03
 CONFIDENT = 0.8
 PAIR = 0.0  # any split between the best two that leaves the first under CONFIDENT is ambiguous
 OUTSIDE = "outside_library"
-CALIBRATION_SEEDS = (70000, 70199)
+CALIBRATION_SEEDS = (70000, 70099)
 
 
 @dataclass(frozen=True)
@@ -56,13 +56,13 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = 0.0  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 6.0
-    c: float = -20.0
-    tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart
-    an: float = 3.0  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
-    bn: float = 0.0
-    cn: float = -20.0
+    a: float = -2.026  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 5.064
+    c: float = -4.584
+    tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
+    an: float = 0.946  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
+    bn: float = -5.273
+    cn: float = -6.338
 
 
 CALIBRATION = Calibration()

@@ -112,6 +112,7 @@ class Case:
     protocol: str = ""
     sample_hz: float = 0.0
     units: list[str] = field(default_factory=list)
+    true_force_N: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def names(self) -> list[str]:
@@ -578,6 +579,7 @@ def simulate(case: Case, plan: Plan, rng, force_noise_N: float | None = None) ->
     noise = force_noise_N if force_noise_N is not None else rng.uniform(0.3, 0.8)
     if case.effects and force_noise_N is None:
         noise = min(noise, max(effect_rms / 1.2, 0.1))
+    case.true_force_N = -record(tension)  # noise-free, for scoring only
     force = -record(tension) + rng.normal(0.0, noise, n)
     force = np.round(force / 0.02) * 0.02
     pressure = record(P_tr) + rng.normal(0.0, 700.0, n)
@@ -620,6 +622,22 @@ def make(case: Case, workdir: str | None = None) -> Recording:
                                                 os.path.join(tmp, f"case_{case.seed}.csv"))  # fmt: skip
     recording.meta["source"] = f"virtual bench seed {case.seed} ({case.family})"
     return recording
+
+
+def identifiable(case: Case, recording: Recording, nominal, share: float = 0.25) -> tuple[bool, float]:
+    """Whether the concealed effects show in this recording at all: the noise-free truth force is
+    fitted by the model's own parameters alone (``model.refit``, the re-fit the diagnosis starts
+    with), and what is left must stand above ``share`` x the noise. An effect the model's own
+    parameters reproduce is parameter error by design; for scoring, its right answer is ``none``.
+    Returns (identifiable, RMS left in N)."""
+    from .model import refit
+
+    truth = Recording(recording.time_s, recording.length_m, recording.pressure_Pa, case.true_force_N)
+    fitted = refit(nominal, [truth])
+    left = float(
+        np.sqrt(np.mean((fitted.muscle.push(truth.pressure_Pa, truth.length_m) - truth.force_N) ** 2))
+    )
+    return left >= share * case.noise_N, left
 
 
 def run_plan(case: Case, t, L, P_set, sample_hz: float, seed: int) -> Recording:
