@@ -27,7 +27,7 @@ import numpy as np
 from ..muscle import Muscle
 from ..recordings import Recording
 from .confidence import CALIBRATION, OUTSIDE, Verdict, blocks, bootstrap, verdict
-from .datadriven import Correction, correction
+from .datadriven import Corrected, Correction, correction
 from .design import recommend, stroke_speed
 from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
 from .locate import locate
@@ -210,8 +210,19 @@ def diagnose(
                      pair=pair)  # fmt: skip
     unexplained = _unexplained(ctx, labels, force - final.prediction, noise, corr)
     design = None
-    if judged.ambiguous and next_experiment and OUTSIDE not in judged.contenders:
-        models = {h: _model_of(h, singles, base, lin) for h in judged.contenders}
+    if judged.ambiguous and next_experiment:
+        models = {}
+        for h in judged.contenders:
+            if h != OUTSIDE:
+                models[h] = _model_of(h, singles, base, lin)
+        if OUTSIDE in judged.contenders:
+            # 'outside the library' as a simulator: the other contender plus its data-driven correction
+            other = next(h for h in judged.contenders if h != OUTSIDE)
+            corr_other = {"none": corr_none, best_single: corr_best}.get(other) or correction(
+                engine, singles[other]
+            )
+            models[OUTSIDE] = Corrected(models[other], corr_other)
+            models = {other: models[other], OUTSIDE: models[OUTSIDE]}
         design = recommend(models, ctx, stroke_speed(ctx, labels), noise)
 
     muscle_before, _ = _polish(recordings, base, lin, force, labels)

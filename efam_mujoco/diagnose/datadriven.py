@@ -43,6 +43,19 @@ class Correction:
     coefficients_N: list[float]
     fold_terms: list[list[str]] = field(default_factory=list)
     prediction: np.ndarray | None = field(default=None, repr=False)  # in-sample, N
+    spec: dict | None = field(default=None, repr=False)  # rebuilds the features on other data
+
+    def predict(self, ctx: Context) -> np.ndarray:
+        """The correction (N, push sign) on other data, e.g. a proposed experiment (the features
+        rebuilt with the centres and scales of the data it was fitted on)."""
+        if not self.terms:
+            return np.zeros(ctx.n)
+        X, names, _ = features(ctx, self.spec)
+        index = {n: i for i, n in enumerate(names)}
+        return sum(
+            (c * X[:, index[t]] for t, c in zip(self.terms, self.coefficients_N) if t in index),
+            np.zeros(ctx.n),
+        )
 
     @property
     def gain(self) -> float:
@@ -59,72 +72,98 @@ class Correction:
         }  # fmt: skip
 
 
-def _bumps(u, count):
-    lo, hi = float(np.percentile(u, 1)), float(np.percentile(u, 99))
-    if hi - lo < 1e-12:
-        return [], []
-    centres = np.linspace(lo, hi, count)
-    width = (hi - lo) / (count - 1)
-    return [np.exp(-(((u - c) / width) ** 2)) for c in centres], [f"{c:.3g}" for c in centres]
+@dataclass
+class Corrected:
+    """A model with the data-driven correction added: something the next-experiment design can
+    simulate as the 'outside the library' hypothesis (``push`` like ``EffectModel.push``)."""
+
+    model: object  # an EffectModel
+    correction: Correction
+
+    def push(self, time_s, length_m, pressure_Pa) -> np.ndarray:
+        ctx = Context(np.asarray(time_s) - time_s[0], length_m, pressure_Pa, [0], self.model.muscle)
+        return self.model.push(time_s, length_m, pressure_Pa) + self.correction.predict(ctx)
 
 
-def features(ctx: Context) -> tuple[np.ndarray, list[str]]:
-    """Causal feature columns (n x m, each scaled to unit RMS) and their names."""
-    x, P = ctx.x, ctx.P_MPa
-    p_top = max(float(np.percentile(P, 99)), 1e-3)
-    p = P / p_top
+def _bumps(u, count, given=None):
+    """Gaussian bumps over ``u``: centres spread over its 1-99 % range (or ``given`` centres)."""
+    if given is None:
+        lo, hi = float(np.percentile(u, 1)), float(np.percentile(u, 99))
+        if hi - lo < 1e-12:
+            return [], [], (np.array([]), 1.0)
+        given = (np.linspace(lo, hi, count), (hi - lo) / (count - 1))
+    centres, width = given
+    return [np.exp(-(((u - c) / width) ** 2)) for c in centres], [f"{c:.3g}" for c in centres], given
+
+
+def _by_recording(ctx, fn):
+    out = np.zeros(ctx.n)
+    for s0, s1 in zip(ctx.starts, list(ctx.starts[1:]) + [ctx.n]):
+        if s1 - s0 > 2:
+            out[s0:s1] = fn(slice(s0, s1))
+    return out
+
+
+def features(ctx: Context, spec: dict | None = None) -> tuple[np.ndarray, list[str], dict]:
+    """Causal feature columns (n x m) and their names, each scaled to unit RMS over the data it
+    was first built on; ``spec`` (returned) rebuilds the same columns on other data (a new
+    protocol), with the same centres, scales and order."""
+    fit = spec is None
+    spec = {"rms": {}} if fit else spec
+    x, P, t = ctx.x, ctx.P_MPa, ctx.t
+    if fit:
+        spec["p_top"] = max(float(np.percentile(P, 99)), 1e-3)
+        spec["t_max"] = max(float(t.max()), 1e-9)
+    p = P / spec["p_top"]
     cols, names = [], []
 
     def add(col, name):
         col = np.asarray(col, dtype=float)
-        rms = math.sqrt(float(np.mean(col * col)))
-        if rms > 1e-12 and np.isfinite(rms):
-            cols.append(col / rms)
-            names.append(name)
+        if fit:
+            rms = math.sqrt(float(np.mean(col * col)))
+            if not (rms > 1e-12 and np.isfinite(rms)):
+                return
+            spec["rms"][name] = rms
+        elif name not in spec["rms"]:
+            return
+        cols.append(col / spec["rms"][name])
+        names.append(name)
 
-    bx, cx = _bumps(x, 8)
+    bx, cx, spec["bx"] = _bumps(x, 8, spec.get("bx"))
     for b, c in zip(bx, cx):
         add(b, f"bump(strain @ {c})")
         add(b * p, f"bump(strain @ {c}) * P")
-    bp, cp = _bumps(P, 8)
+    bp, cp, spec["bp"] = _bumps(P, 8, spec.get("bp"))
     for b, c in zip(bp, cp):
         add(b, f"bump(P @ {c} MPa)")
         add(b * x, f"bump(P @ {c} MPa) * strain")
-    t = ctx.t
-    for name, u, scale in (("strain", x, max(np.ptp(x), 1e-6)), ("P", p, 1.0)):
-        rate = np.zeros(ctx.n)
-        for s0, s1 in zip(ctx.starts, list(ctx.starts[1:]) + [ctx.n]):
-            if s1 - s0 > 2:
-                rate[s0:s1] = np.gradient(lag(t[s0:s1], u[s0:s1], 0.1), t[s0:s1])
-        typical = float(np.percentile(np.abs(rate), 90)) + 1e-12
+    for name, u in (("strain", x), ("P", p)):
+        rate = _by_recording(ctx, lambda s, u=u: np.gradient(lag(t[s], u[s], 0.1), t[s]))
+        if fit:
+            spec[f"typical_{name}"] = float(np.percentile(np.abs(rate), 90)) + 1e-12
+        typical = spec[f"typical_{name}"]
         add(rate, f"d{name}/dt")
         add(rate * p, f"d{name}/dt * P")
         add(np.tanh(rate / (0.2 * typical)), f"sign(d{name}/dt)")
         add(np.tanh(rate / (0.2 * typical)) * p, f"sign(d{name}/dt) * P")
         if name == "strain":
-            acc = np.zeros(ctx.n)
-            for s0, s1 in zip(ctx.starts, list(ctx.starts[1:]) + [ctx.n]):
-                if s1 - s0 > 2:
-                    acc[s0:s1] = np.gradient(rate[s0:s1], t[s0:s1])
-            add(acc, "d2strain/dt2")
+            add(_by_recording(ctx, lambda s, rate=rate: np.gradient(rate[s], t[s])), "d2strain/dt2")
         for tau in (0.05, 0.3, 3.0, 30.0):
             if name == "strain" and tau < 0.3:
                 continue
             d = u - lag(t, u, tau, ctx.starts)
+            other = "P" if name == "strain" else "strain"
             add(d, f"{name} - lag({name}, {tau:g} s)")
-            add(
-                d * (p if name == "strain" else x),
-                f"({name} - lag({name}, {tau:g} s)) * {'P' if name == 'strain' else 'strain'}",
-            )
-        del scale
-    add(t / max(t.max(), 1e-9), "time")
-    add((t / max(t.max(), 1e-9)) ** 2, "time^2")
+            add(d * (p if name == "strain" else x), f"({name} - lag({name}, {tau:g} s)) * {other}")
+    add(t / spec["t_max"], "time")
+    add((t / spec["t_max"]) ** 2, "time^2")
     load = np.abs(x) * (1 + p)
-    peak = np.zeros(ctx.n)
-    for s0, s1 in zip(ctx.starts, list(ctx.starts[1:]) + [ctx.n]):
-        peak[s0:s1] = np.maximum.accumulate(load[s0:s1])
-    add(np.exp(-(peak - load) / max(0.05 * np.ptp(load), 1e-9)), "first-loading memory")
-    return np.column_stack(cols) * ctx.engaged[:, None], names
+    peak = _by_recording(ctx, lambda s: np.maximum.accumulate(load[s]))
+    if fit:
+        spec["load_scale"] = max(0.05 * float(np.ptp(load)), 1e-9)
+    add(np.exp(-(peak - load) / spec["load_scale"]), "first-loading memory")
+    X = np.column_stack(cols) * ctx.engaged[:, None] if cols else np.zeros((ctx.n, 0))
+    return X, names, spec
 
 
 def _path(G, b, yy, k0: int, max_terms: int) -> list[tuple[list[int], np.ndarray]]:
@@ -176,7 +215,7 @@ def correction(engine: Engine, fit: Fit) -> Correction:
     effects = [get(name) for name in fit.names]
     shapes = [fit.shapes[name] for name in fit.names]
     fixed, C, clo, chi, owner = engine._design(effects, shapes)
-    Xf, names = engine.ctx.cached("dd_features", lambda: features(engine.ctx))
+    Xf, names, spec = engine.ctx.cached("dd_features", lambda: features(engine.ctx))
     X = Xf[engine.order]
     A0 = np.hstack([engine.Jn, C])
     lo = np.r_[engine.jlo * engine.Jscale, clo]
@@ -228,5 +267,5 @@ def correction(engine: Engine, fit: Fit) -> Correction:
         heldout_rms_before_N=math.sqrt(before / engine.n) if fold_terms else fit.heldout_rms,
         heldout_rms_after_N=math.sqrt(after / engine.n) if fold_terms else fit.heldout_rms,
         terms=[names[j] for j in active], coefficients_N=[float(c) for c in coef],
-        fold_terms=fold_terms, prediction=dd,
+        fold_terms=fold_terms, prediction=dd, spec=spec,
     )  # fmt: skip

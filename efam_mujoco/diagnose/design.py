@@ -15,6 +15,12 @@ pressure, its stroke speed), each a test a lab can run on the same rig:
   pressure dependence at another length: end effects vs braid compliance vs lag);
 * ``staircase_rest``: a pressure staircase at the shortest length, 8 steps up and down, 3 s
   holds (pressure lag, pressure-direction hysteresis);
+* ``pressure_hold``: an isometric ramp to the top pressure held 60 s, vented, held 30 s (slow
+  pressure hysteresis, relaxation);
+* ``fast_ramps``: three isometric ramps 3 s each way (pressure-rate dependence).
+
+A test that never moved the length (isometric) gets the pressure-only candidates alone: strokes
+would ask both models where no data constrained them.
 * ``idle``: five minutes at a middle pressure between two strokes (drift).
 
 The score of a candidate is the RMS over it of the difference between the two models'
@@ -66,12 +72,49 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     """Candidate next experiments inside the ranges the recording covered."""
     rest = ctx.muscle.rest_length_m
     L_lo, L_hi = float(np.percentile(ctx.L, 1)), float(np.percentile(ctx.L, 99))
-    if L_hi - L_lo < 0.05 * rest:  # an isometric test: propose strokes over a modest range
-        L_hi = min(L_lo + 0.3 * rest, 0.95 * ctx.muscle.max_length_m)
     P_top = max(float(np.percentile(ctx.P, 99)), 50e3)
     v = max(speed_m_per_s, 1e-3)
-    stroke = (L_hi - L_lo) / v
     out = []
+    # pressure-only tests at the shortest recorded length: always inside what the data covered
+    p = _Prog(L_lo)
+    p.go(2)
+    p.go(20, P=P_top)
+    p.go(60)
+    p.go(20, P=0.0)
+    p.go(30)
+    out.append(
+        p.done(
+            "pressure_hold",
+            f"isometric ramp to {P_top / 1e3:.0f} kPa, held 60 s, vented, 30 s at {L_lo * 1e3:.0f} mm",
+        )
+    )
+    p = _Prog(L_lo)
+    p.go(2)
+    for _ in range(3):
+        p.go(3, P=P_top)
+        p.go(1)
+        p.go(3, P=0.0)
+        p.go(1)
+    out.append(
+        p.done(
+            "fast_ramps",
+            f"three fast isometric ramps 0-{P_top / 1e3:.0f}-0 kPa (3 s each way) at {L_lo * 1e3:.0f} mm",
+        )
+    )
+    p = _Prog(L_lo)
+    p.go(2)
+    for k in list(range(1, 9)) + list(range(7, -1, -1)):
+        p.go(0.001, P=P_top * k / 8)
+        p.go(3)
+    out.append(
+        p.done(
+            "staircase_rest",
+            f"pressure staircase 8 steps to {P_top / 1e3:.0f} kPa and down, 3 s holds, at {L_lo * 1e3:.0f} mm",
+        )
+    )
+    if L_hi - L_lo < 0.05 * rest:
+        return out  # an isometric test: strokes would ask the models where no data constrained them
+    stroke = (L_hi - L_lo) / v
     p = _Prog(L_lo)
     p.go(2)
     p.go(0.001, P=P_top)
