@@ -31,6 +31,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import json  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 from dataclasses import asdict  # noqa: E402
@@ -176,11 +177,11 @@ def summarise(rows: list[dict]) -> dict:
             "outside_dd_improves": _frac(r["dd_heldout_after_N"] < 0.98 * r["dd_heldout_before_N"] for r in outside),
             "next_tried": len(amb), "next_resolved": _frac(r["next"]["resolved"] for r in amb),
         }  # fmt: skip
-    seconds = [r["seconds"] for r in rows]
+    seconds = [r["seconds"] for r in rows] or [float("nan")]
     big = [r for r in rows if r["samples"] >= 25000]
     out["seconds_median"] = float(np.median(seconds))
     out["seconds_max"] = float(np.max(seconds))
-    out["samples_max"] = int(max(r["samples"] for r in rows))
+    out["samples_max"] = int(max((r["samples"] for r in rows), default=0))
     out["seconds_max_25k_plus"] = float(max((r["seconds"] for r in big), default=float("nan")))
     out["speed_goal_s"] = SPEED_GOAL_S
     return out
@@ -295,8 +296,20 @@ def write_figures(rows: list[dict], summary: dict) -> list[Path]:
     return [path]
 
 
-def run(cases, jobs: int, try_next: bool) -> list[dict]:
+def run(cases, jobs: int, try_next: bool, log: Path | None = None) -> list[dict]:
+    """Diagnose every case; each row is also appended to ``log`` (JSON lines) as it finishes, so
+    that a run cut short can still be summarised (``--summarise LOG``)."""
     rows = []
+    if log is not None:
+        log.parent.mkdir(parents=True, exist_ok=True)
+        log.write_text("")
+
+    def keep(row):
+        rows.append(row)
+        if log is not None:
+            with log.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+
     if jobs > 1:
         from functools import partial
         from multiprocessing import Pool
@@ -305,12 +318,12 @@ def run(cases, jobs: int, try_next: bool) -> list[dict]:
             for row in progress(
                 pool.imap_unordered(partial(run_case, try_next=try_next), cases), "diagnose", len(cases)
             ):
-                rows.append(row)
+                keep(row)
                 _line(row, len(rows), len(cases))
     else:
         pin_one_core()
         for case in progress(cases, "diagnose", len(cases)):
-            rows.append(run_case(case, try_next))
+            keep(run_case(case, try_next))
             _line(rows[-1], len(rows), len(cases))
     return sorted(rows, key=lambda r: r["seed"])
 
@@ -325,8 +338,26 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--no-next", action="store_true", help="do not try the recommended next experiments")
     ap.add_argument("--out", default=None)
+    ap.add_argument(
+        "--summarise", metavar="LOG", help="summarise the rows of a (possibly cut short) run's log and stop"
+    )
     args = ap.parse_args(argv)
     start = time.perf_counter()
+    if args.summarise:
+        rows = sorted((json.loads(line) for line in Path(args.summarise).read_text().splitlines() if line.strip()),
+                      key=lambda r: r["seed"])  # fmt: skip
+        planned = len(plan(args.per_family, args.seed))
+        summary = summarise(rows)
+        summary["planned"] = planned
+        print_summary(summary)
+        print(f"\n{len(rows)} of {planned} planned recordings ran")
+        out = {"summary": summary, "settings": {"per_family": args.per_family, "seed": args.seed, "calibration": asdict(CALIBRATION),
+               "note": f"summarised from the run's log: {len(rows)} of {planned} planned recordings ran"}, "cases": rows}  # fmt: skip
+        path = write_json_atomic(args.out or RESULTS, out)
+        print(f"wrote {path}")
+        for fig in write_figures(rows, summary):
+            print(f"figure: {fig}")
+        return 0
     if args.calibrate:
         cases = plan(args.per_family, CALIBRATION_SEEDS[0])  # 25 per family: seeds 70000-70099
         cases = [c for c in cases if c[0] <= CALIBRATION_SEEDS[1]]
@@ -340,7 +371,9 @@ def main(argv=None) -> int:
         )
         return 0
     cases = plan(args.per_family, args.seed)
-    rows = run(cases, args.jobs, try_next=not args.no_next)
+    rows = run(
+        cases, args.jobs, try_next=not args.no_next, log=Path(args.out or RESULTS).with_suffix(".rows.jsonl")
+    )
     summary = summarise(rows)
     print_summary(summary)
     out = {

@@ -236,7 +236,13 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     scored.sort(key=lambda s: -s["predicted_difference_rms_N"])
     best = scored[0] if scored else None
     words = ""
-    if best:
+    if best and best["ratio_to_noise"] < 1.0:
+        words = (
+            f"No candidate experiment separates {na} and {nb}: the two fitted models predict forces differing "
+            f"by at most {best['predicted_difference_rms_N']:.2f} N RMS ({best['name']}) against a noise floor of "
+            f"{noise_N:.2f} N."
+        )
+    elif best:
         words = (
             f"Next experiment to separate {na} and {nb}: {best['name']} ({best['protocol']}); the two fitted "
             f"models predict forces differing by {best['predicted_difference_rms_N']:.2f} N RMS (peak "
