@@ -30,17 +30,26 @@ def test_protocol_is_segmented_into_the_experimenters_cycles():
     recording, truth = synthesize(11, "none")
     x = recording.length_m / truth.muscle.rest_length_m - 1
     lab = label(recording.time_s, x, recording.pressure_Pa, [0])
-    # a passive stroke, slow-fast-slow at five pressures, one repeat of the first pressure
-    assert lab.cycle.max() + 1 == 1 + 5 * 3 + 1
+    # strokes: a passive stroke, slow-fast-slow at five pressures, one repeat of the first
+    # pressure: 17 out-and-back cycles driven by the length; each pressure step is its own
+    # (pressure-driven) half-cycle
+    stroke_cycles = [
+        c
+        for c in np.unique(lab.cycle)
+        if np.any(lab.moving[lab.cycle == c] & (lab.driver[lab.cycle == c] == 0))
+    ]
+    assert len(stroke_cycles) == 1 + 5 * 3 + 1
     np.testing.assert_allclose(lab.levels_Pa / 1e3, [0, 103.4, 206.8, 310.3, 413.7, 517.1], atol=2.0)
-    fast = np.unique(lab.cycle[lab.rate_class == 1])
-    assert len(fast) == 5  # the one fast cycle at each pressure
+    fast = np.unique(lab.cycle[(lab.rate_class == 1) & (lab.driver == 0)])
+    assert len(fast) == 5  # the one fast stroke at each pressure
     assert lab.n_folds == 5
-    # every fold holds out whole cycles at more than one pressure level
+    # every fold holds out whole half-cycles at more than one pressure level, in both directions
     for k in range(lab.n_folds):
         assert len(np.unique(lab.level[lab.fold == k])) >= 2
-        cycles = np.unique(lab.cycle[lab.fold == k])
-        assert all(np.all(lab.fold[lab.cycle == c] == k) for c in cycles)
+        halves = np.unique(lab.half_cycle[lab.fold == k])
+        assert all(np.all(lab.fold[lab.half_cycle == h] == k) for h in halves)
+        d = lab.direction[(lab.fold == k) & (lab.driver == 0)]
+        assert (d > 0).any() and (d < 0).any()
 
 
 @pytest.mark.parametrize("effect", ["friction", "viscoelasticity", "pressure_lag", "drift"])

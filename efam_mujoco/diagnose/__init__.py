@@ -26,6 +26,9 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..recordings import Recording
+from .confidence import CALIBRATION, OUTSIDE, Verdict, blocks, bootstrap, verdict
+from .datadriven import Corrected, Correction, correction
+from .design import recommend, stroke_speed
 from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
 from .locate import locate
 from .model import Refit, linearise, refit
@@ -67,6 +70,18 @@ class Diagnosis:
     predicted_before: np.ndarray = field(repr=False, default=None)
     predicted_after: np.ndarray = field(repr=False, default=None)
     sources: list[str] = field(default_factory=list)
+    verdict: Verdict | None = None  # probabilities, the answer, ambiguity (``confidence``)
+    correction: Correction | None = None  # the unnamed data-driven correction (``datadriven``)
+    unexplained: dict = field(default_factory=dict)  # structured residual left, where
+    next_experiment: dict | None = None  # for an ambiguous answer (``design``)
+    structure: str = ""  # the test's structure and the held-out rule, in words
+    heldout_residual_before: np.ndarray | None = field(repr=False, default=None)  # per sample, N
+    heldout_residual_after: np.ndarray | None = field(repr=False, default=None)
+
+    @property
+    def answer(self) -> str:
+        """The most probable hypothesis: an effect name, ``none`` or ``outside_library``."""
+        return self.verdict.answer if self.verdict else (self.names[0] if self.names else "none")
 
     @property
     def names(self) -> list[str]:
@@ -107,6 +122,11 @@ class Diagnosis:
             "n_samples": self.n_samples,
             "seconds": self.seconds,
             "sources": self.sources,
+            "structure": self.structure,
+            "verdict": self.verdict.to_json() if self.verdict else None,
+            "datadriven_correction": self.correction.to_json() if self.correction else None,
+            "unexplained": _jsonable(self.unexplained),
+            "next_experiment": _jsonable(self.next_experiment),
         }
 
 
@@ -146,6 +166,7 @@ def diagnose(
     candidates: tuple[str, ...] = EFFECT_NAMES,
     laws=None,
     max_effects: int = 2,
+    next_experiment: bool = True,
 ) -> Diagnosis:
     """Diagnose the mismatch between ``muscle`` (its geometry is the starting point; its law and
     dead band are re-fitted) and force-length-pressure ``recordings``."""
@@ -167,10 +188,45 @@ def diagnose(
     noise, base, kept, singles, notes = search(engine, tuple(candidates), max_effects)
     residual = force - base.prediction
     located = locate(ctx, labels, residual, noise)
+    # confidence: which single explanation predicts unseen blocks best, and is it the physics
+    block = blocks(labels, ctx.n)
+    heldout = {"none": base.heldout_residual} | {k: f.heldout_residual for k, f in singles.items()}
+    raw = bootstrap({k: v for k, v in heldout.items() if v is not None}, block,
+                    concentration=CALIBRATION.concentration, tie_margin=CALIBRATION.tie_margin)  # fmt: skip
+    best_single = min(singles, key=lambda k: singles[k].heldout_rms) if singles else None
+    kept = _agree(kept, raw, singles, engine, base, noise)
+    final = kept[-1] if kept else base
+    corr_none = correction(engine, base)
+    corr = correction(engine, final) if kept else corr_none
+    corr_best = (
+        corr
+        if not best_single or (kept and kept[0].names[0] == best_single)
+        else correction(engine, singles[best_single])
+    )
+    cut = notes.get(best_single, {}).get("excess_cut", 0.0) if best_single else 0.0
+    excess = max(1.0 - noise**2 / max(base.heldout_rms**2, 1e-300), 0.0)
+    pair = tuple(kept[-1].names[:2]) if len(kept) >= 2 else None
+    judged = verdict(raw, cut, corr_best.gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
+                     pair=pair)  # fmt: skip
+    unexplained = _unexplained(ctx, labels, force - final.prediction, noise, corr)
+    design = None
+    if judged.ambiguous and next_experiment:
+        models = {}
+        for h in judged.contenders:
+            if h != OUTSIDE:
+                models[h] = _model_of(h, singles, base, lin)
+        if OUTSIDE in judged.contenders:
+            # 'outside the library' as a simulator: the other contender plus its data-driven correction
+            other = next(h for h in judged.contenders if h != OUTSIDE)
+            corr_other = {"none": corr_none, best_single: corr_best}.get(other) or correction(
+                engine, singles[other]
+            )
+            models[OUTSIDE] = Corrected(models[other], corr_other)
+            models = {other: models[other], OUTSIDE: models[OUTSIDE]}
+        design = recommend(models, ctx, stroke_speed(ctx, labels), noise)
 
     muscle_before, _ = _polish(recordings, base, lin, force, labels)
     predicted_before = muscle_before.push(ctx.P, ctx.L)
-    final = kept[-1] if kept else base
     muscle_after, final_values = _polish(recordings, final, lin, force, labels)
     found = _found(kept, base, final_values, noise, ctx.n)
     predicted_after = np.concatenate(
@@ -206,7 +262,57 @@ def diagnose(
         ctx=ctx, labels=labels, force=force,
         predicted_before=predicted_before, predicted_after=predicted_after,
         sources=[str(r.meta.get("source", "")) for r in recordings],
+        verdict=judged, correction=corr, unexplained=unexplained, next_experiment=design,
+        structure=labels.describe(),
+        heldout_residual_before=base.heldout_residual, heldout_residual_after=final.heldout_residual,
     )  # fmt: skip
+
+
+def _agree(kept: list[Fit], raw: dict, singles: dict, engine: Engine, base: Fit, noise: float) -> list[Fit]:
+    """The kept effects made to agree with the probabilities: nothing when ``none`` is the most
+    probable; the most probable effect first (alone when the gates had kept another)."""
+    if not raw:
+        return kept
+    top = max(raw, key=raw.get)
+    if top == "none":
+        return []
+    if kept and kept[0].names[0] == top:
+        return kept
+    fit = singles[top]
+    fit.before_heldout_rms = base.heldout_rms
+    return [fit]
+
+
+def _model_of(hypothesis: str, singles: dict, base: Fit, lin) -> EffectModel:
+    """The fitted model of one hypothesis, as a simulator (its parameter corrections applied)."""
+    if hypothesis == "none":
+        return EffectModel(lin.muscle_for(base.du), [])
+    fit = singles[hypothesis]
+    effect = get(hypothesis)
+    values = {p.key: min(max(float(fit.values[hypothesis][p.key]), p.lo), p.hi) for p in effect.params}
+    return EffectModel(lin.muscle_for(fit.du), [(hypothesis, values)])
+
+
+def _unexplained(ctx, labels, residual, noise, corr: Correction) -> dict:
+    """Structured residual left after the kept terms: where it stands above the noise floor, and
+    what the unnamed data-driven correction does about it (held out)."""
+    left = locate(ctx, labels, residual, noise)
+    rms = float(np.sqrt(np.mean(residual**2)))
+    structured = bool(left["above_noise"]) and rms > 1.1 * noise
+    lines = []
+    if structured:
+        lines.append(
+            f"Structured residual remains after the named terms: RMS {rms:.2f} N against a noise floor of "
+            f"{noise:.2f} N, organised by {', '.join(left['above_noise'])}."
+        )
+        lines.extend(left["summary"][1:])
+    if corr.terms and corr.gain > 0:
+        lines.append(
+            f"A data-driven correction (unnamed; {len(corr.terms)} terms: {', '.join(corr.terms[:4])}"
+            f"{'...' if len(corr.terms) > 4 else ''}) lowers the held-out RMS from {corr.heldout_rms_before_N:.2f} N "
+            f"to {corr.heldout_rms_after_N:.2f} N ({corr.gain:.0%})."
+        )
+    return {"structured": structured, "residual_rms_N": rms, "located": left, "summary": lines}
 
 
 def _polish(recordings, fit: Fit, lin, force, labels, iterations: int = 4):

@@ -89,8 +89,12 @@ class Refit:
 
 
 def _deadband_hi(P: np.ndarray) -> float:
-    positive = P[P > 0.05 * np.max(P)]
-    return 0.95 * float(np.percentile(positive, 2)) if len(positive) else 0.5 * float(np.max(P))
+    """Upper bound of the dead band: half the highest pressure of the test. The bound must not
+    depend on the protocol (a cap at the lowest pressure plateau, right for isobaric strokes,
+    falls under the true dead band on a pressure ramp that passes through it); inside it the
+    data decide."""
+    top = float(np.percentile(P, 99.5)) if len(P) else 0.0
+    return 0.5 * max(top, 0.0)
 
 
 def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:

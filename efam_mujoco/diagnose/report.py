@@ -21,6 +21,8 @@ def text(d: Diagnosis) -> str:
         f"{m.bladder_volume_m3 * 1e6:.3f} cm^3"
     )
     out.append("  in-sample RMS per law: " + ", ".join(f"{k} {v:.2f} N" for k, v in d.refit.by_law.items()))
+    if d.structure:
+        out.append(f"Test structure (read from the data): {d.structure}")
     out.append("")
     out.append("Located mismatch")
     out.extend("  " + line for line in d.located["summary"])
@@ -33,6 +35,12 @@ def text(d: Diagnosis) -> str:
             f"{c['excess_cut']:10.1%}"
         )
     out.append("")
+    if d.verdict is not None:
+        out.append("Confidence (held-out block bootstrap, calibrated; see docs/diagnosis.md)")
+        out.append("  " + d.verdict.words())
+        if d.next_experiment and d.next_experiment.get("words"):
+            out.append("  " + d.next_experiment["words"])
+        out.append("")
     if not d.effects:
         out.append("Found: none -- no candidate beats the noise floor on held-out cycles.")
     for i, e in enumerate(d.effects, 1):
@@ -41,6 +49,10 @@ def text(d: Diagnosis) -> str:
         params = ", ".join(_value(k, v) for k, v in e["parameters"].items())
         out.append(f"  parameters: {params}")
         out.append(f"  held-out RMS {e['heldout_rms_before_N']:.3f} N -> {e['heldout_rms_after_N']:.3f} N")
+    if d.unexplained.get("summary"):
+        out.append("")
+        out.append("Outside the library")
+        out.extend("  " + line for line in d.unexplained["summary"])
     out.append("")
     out.append(
         f"RMS in-sample {d.rms_before_N:.3f} N -> {d.rms_after_N:.3f} N; held out "

@@ -1,25 +1,35 @@
-"""What the experimenter did at each sample: cycles, pressure levels, direction, rate, holds.
+"""What the experimenter did at each sample, read from the data alone: any test protocol.
 
-Recordings are concatenated (``starts`` marks each one). Each recording has a *driver*: the strain
-when its length moves (isobaric strokes), else the pressure (isometric pressure ramps, where the
-rate of the test is the pressure rate). On the driver, smoothed over about half a second:
+Recordings are concatenated (``starts`` marks each one). Nothing here assumes a protocol (the
+order of the pressures, where strokes start or end, whether the length or the pressure is
+driven); every threshold comes from the recording's own noise and range:
 
-* a *cycle* is one excursion away from the driver's low state and back (a stroke out and back;
-  a pressure ramp up and down). It runs from the completed return of the previous excursion to
-  the completed return of its own, so the pressure change and settling before a stroke belong to
-  that stroke's cycle;
-* its *level* is the pressure it was run at (clustered over cycles), ``cycle_in_level`` counts
-  cycles at one level in time order (0 = the first);
-* ``direction`` is +1 while the driver rises (loading, pressurising), -1 while it falls, 0 when
-  it stands; ``hold`` marks samples where neither length nor pressure moves (dwell);
-* ``rate_class`` 0/1 = slow/fast when the moving cycles run at clearly different rates.
+* **moving**: the length moves where its smoothed rate stands above both its own noise (a rate
+  estimated over ``SMOOTH_S`` from a signal with white noise sigma has the spread
+  ``sqrt(2) sigma / (w dt)``) and 2 % of the recording's typical moving rate; the same for the
+  pressure. Where the length moves, the *driver* of the test is the strain (a stroke); where
+  only the pressure moves, the pressure (an isometric ramp or step); where neither moves for a
+  second or more, a *hold* (dwell);
+* **half-cycles**: maximal monotone runs of the driver (its direction constant; holds inside a
+  staircase of steps do not break the run; a reversal smaller than ``MIN_SWING`` x the driver's
+  range, or than 8 x its noise, is not a reversal, so a regulator's overshoot or the noise is
+  not a test). Each half-cycle owns the hold that follows it. Strokes at any mean and amplitude,
+  sinusoids that never return to the rest length, chirps, pressure staircases and ramps all
+  split into half-cycles this way;
+* a **cycle** is a rising half-cycle and the falling one after it (a new one starts at every
+  rise, and whenever the driver changes between length and pressure). Its **level** is the
+  pressure it was run at (clustered), ``cycle_in_level`` counts the cycles at one level in time
+  order (0 = the first);
+* ``direction`` is +1 while the driver rises (lengthening, pressurising), -1 while it falls, 0
+  when it stands; ``rate_class`` 0/1 = slow/fast when the half-cycles run at clearly different
+  rates (per driver).
 
-Held-out folds keep whole cycles together: fold = (level + cycle_in_level) mod K, so every fold
-holds out cycles of several levels and several positions (first, later) in the test order. When
-each of several recordings holds a single cycle (one pressure sweep per held length), whole
-half-cycles are held out instead: the rising branch of every other recording and the falling branch
-of the others form one fold, the rest the other, so every length and both directions are trained
-on. A single recording with a single cycle falls back to alternating tenths of the test.
+**Held-out folds** are whole half-cycles, dealt round-robin in time order into
+K = min(5, number of units) folds, so every fold holds rising and falling branches at several
+levels and positions in the test, and every fold's training set holds both directions at every
+level. When a test has fewer than 6 half-cycles (a single ramp up and down), each half-cycle is
+cut into contiguous time blocks until there are 6 units or more. ``Labels.folds_rule`` states
+which rule applied, for the report.
 """
 
 from __future__ import annotations
@@ -28,10 +38,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import segments
+from .effects import high_frequency_noise, segments
 
 SMOOTH_S = 0.5
 MAX_FOLDS = 5
+MIN_UNITS = 6
+MIN_SWING = 0.03  # of the driver's range: a smaller reversal is noise or overshoot
+HOLD_S = 1.0
 
 
 @dataclass
@@ -49,13 +62,30 @@ class Labels:
     rate_class: np.ndarray  # -1 still, 0 slow, 1 fast (0 when only one rate)
     fold: np.ndarray
     n_folds: int
+    half_cycle: np.ndarray | None = None  # index of the half-cycle (monotone run) of each sample
+    folds_rule: str = ""
 
     @property
     def isometric(self) -> bool:
         return bool(np.all(self.driver == 1))
 
+    def describe(self) -> str:
+        """The test's structure as read from the data, and how it was held out, in words."""
+        n_half = int(self.half_cycle.max() + 1) if self.half_cycle is not None and len(self.half_cycle) else 0
+        strokes = int(np.sum(self.driver == 0))
+        kind = (
+            "isometric (pressure-driven)" if self.isometric
+            else "strokes" if strokes == len(self.driver) or np.all(self.driver[self.moving] == 0)
+            else "mixed strokes and pressure ramps/steps"
+        )  # fmt: skip
+        return (
+            f"{kind}: {n_half} half-cycles in {int(self.cycle.max() + 1)} cycles at "
+            f"{len(self.levels_Pa)} pressure level(s), {int(self.hold_id.max() + 1)} holds; {self.folds_rule}"
+        )
+
 
 def smooth(u: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average (edges padded with the end values)."""
     if window <= 1:
         return u.copy()
     kernel = np.ones(window) / window
@@ -68,126 +98,190 @@ def _window(t: np.ndarray) -> int:
     return max(3, int(round(SMOOTH_S / max(dt, 1e-9))))
 
 
-def _rate(t, u, window):
+def _moving(t, u, window):
+    """(smoothed signal, its rate, moving mask, noise) with a threshold from the signal's own
+    noise: the rate is the least-squares slope over the window (its noise is
+    sigma sqrt(12 / w^3) / dt for white noise sigma), moving where it stands 5 x above that and
+    above 2 % of the recording's typical moving rate."""
     s = smooth(u, window)
-    return np.gradient(s, t) if len(t) > 2 else np.zeros(len(t)), s
-
-
-def label(t, x, P, starts) -> Labels:
-    n = len(t)
-    out = {k: np.zeros(n, dtype=int) for k in ("driver", "direction", "cycle", "rate_class")}
-    rate = np.zeros(n)
-    moving = np.zeros(n, dtype=bool)
-    hold = np.zeros(n, dtype=bool)
-    cycle_count = 0
-    excursions = []  # (cycle index, sample slice of the excursion, recording)
-    branch = np.zeros(n, dtype=int)
-    recording = np.zeros(n, dtype=int)
-    per_recording_cycles: list[int] = []
-    for b, e in segments(np.asarray(starts), n):
-        tt = t[b:e]
-        w = _window(tt)
-        rx, sx = _rate(tt, x[b:e], w)
-        rp, sp = _rate(tt, P[b:e], w)
-        use_pressure = np.ptp(sx) < 0.01
-        out["driver"][b:e] = int(use_pressure)
-        r, s = (rp, sp) if use_pressure else (rx, sx)
-        rate[b:e] = r
-        thr = 0.05 * np.percentile(np.abs(r), 90) + 1e-15
-        mv = np.abs(r) > thr
-        moving[b:e] = mv
-        out["direction"][b:e] = np.where(mv, np.sign(r), 0).astype(int)
-        still_p = np.abs(rp) <= max(0.05 * np.percentile(np.abs(rp), 90), 5e3)  # 5 kPa/s: noise
-        hold[b:e] = _min_runs(~mv & (still_p if not use_pressure else True), tt, 1.0)
-        # cycles: excursions of the driver above the middle of its range
-        lo, hi = np.percentile(s, 2), np.percentile(s, 98)
-        q = (s - lo) / max(hi - lo, 1e-15)
-        up = q > 0.5
-        found = []  # (start, end) of each excursion and where its return completes
-        i = 0
-        while i < len(q):
-            if not up[i]:
-                i += 1
-                continue
-            j = i
-            while j < len(q) and up[j]:
-                j += 1
-            k = j
-            while k < len(q) and q[k] > 0.05:  # the return completes near the low state
-                k += 1
-            found.append((i, j, k))
-            i = max(k, j)
-        cyc = np.zeros(e - b, dtype=int)
-        for m, (_, _, k) in enumerate(found[:-1]):
-            cyc[k:] = m + 1
-        for m, (i, j, _) in enumerate(found):
-            excursions.append((cycle_count + m, slice(b + i, b + j)))
-        out["cycle"][b:e] = cycle_count + cyc
-        cycle_count += max(len(found), 1)
-        # branch within each cycle: rising up to the driver's peak, falling after it
-        for c in np.unique(cyc):
-            idx = np.flatnonzero(cyc == c)
-            peak = idx[int(np.argmax(s[idx]))]
-            branch[b + idx] = np.where(idx <= peak, 0, 1)
-        recording[b:e] = len(per_recording_cycles)
-        per_recording_cycles.append(max(len(found), 1))
-    cycle = out["cycle"]
-    n_cycles = cycle_count
-    # level of each cycle: median pressure over its excursion (or over the cycle)
-    cycle_P = np.array([np.median(P[cycle == c]) if np.any(cycle == c) else 0.0 for c in range(n_cycles)])
-    for c, sl in excursions:
-        if c < n_cycles:
-            cycle_P[c] = np.median(P[sl])
-    tol = max(3e3, 0.03 * float(np.max(np.abs(P), initial=0.0)))
-    levels, cycle_level = _cluster(cycle_P, tol)
-    level = cycle_level[cycle]
-    cycle_in_level = np.zeros(n, dtype=int)
-    counts: dict[int, int] = {}
-    order_in_level = np.zeros(n_cycles, dtype=int)
-    for c in range(n_cycles):
-        lv = int(cycle_level[c])
-        order_in_level[c] = counts.get(lv, 0)
-        counts[lv] = order_in_level[c] + 1
-    cycle_in_level = order_in_level[cycle]
-    # rate classes from the excursions' median moving rates
-    exc_rate = {}
-    for c, sl in excursions:
-        r = np.abs(rate[sl][moving[sl]])
-        if len(r):
-            exc_rate[c] = float(np.median(r))
-    rate_class = np.where(moving, 0, -1)
-    if len(exc_rate) >= 2:
-        values = np.array(list(exc_rate.values()))
-        if values.max() > 1.5 * values.min():
-            split = np.sqrt(values.max() * values.min())
-            for c, v in exc_rate.items():
-                rate_class[(cycle == c) & moving] = int(v > split)
-    hold_id = np.full(n, -1)
-    edges = np.flatnonzero(np.diff(np.r_[0, hold.astype(int), 0]))
-    for k, (s0, s1) in enumerate(zip(edges[::2], edges[1::2])):
-        hold_id[s0:s1] = k
-    if len(per_recording_cycles) >= 2 and max(per_recording_cycles) == 1:
-        # one cycle per recording (e.g. one pressure sweep per held length): hold out half-cycles,
-        # the rising branch of every other recording and the falling branch of the rest, so that
-        # every recording and both branches stay in training
-        fold, n_folds = (recording + branch) % 2, 2
+    n = len(u)
+    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
+    if n > window:
+        j = np.arange(window) - (window - 1) / 2
+        kernel = j[::-1] / np.sum(j * j) / dt
+        padded = np.r_[np.full(window // 2, u[0]), u, np.full(window - 1 - window // 2, u[-1])]
+        rate = np.convolve(padded, kernel, mode="valid")
     else:
-        fold, n_folds = _folds(cycle, level, cycle_in_level, n_cycles, t)
-    return Labels(
-        driver=out["driver"], rate=rate, direction=out["direction"], moving=moving, hold=hold,
-        hold_id=hold_id, cycle=cycle, level=level, levels_Pa=levels, cycle_in_level=cycle_in_level,
-        rate_class=rate_class, fold=fold, n_folds=n_folds,
-    )  # fmt: skip
+        rate = np.gradient(s, t) if n > 2 else np.zeros(n)
+    sigma = high_frequency_noise(u)
+    noise_rate = sigma * np.sqrt(12.0 / window**3) / dt
+    typical = float(np.percentile(np.abs(rate), 95)) if n else 0.0
+    thr = max(5.0 * noise_rate, 0.02 * typical, 1e-15)
+    return s, rate, np.abs(rate) > thr, sigma
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
 def _min_runs(mask: np.ndarray, t: np.ndarray, seconds: float) -> np.ndarray:
     """``mask`` with runs shorter than ``seconds`` removed."""
     out = mask.copy()
-    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
-    for s0, s1 in zip(edges[::2], edges[1::2]):
+    for s0, s1 in _runs(mask):
         if t[s1 - 1] - t[s0] < seconds:
             out[s0:s1] = False
     return out
+
+
+def _half_cycles(driver, direction, signal_by_driver, swing_by_driver) -> list[tuple[int, int, int, int]]:
+    """Monotone runs (start, end, driver, direction) of the moving samples, small reversals merged."""
+    n = len(driver)
+    moving = direction != 0
+    runs = []  # (start, end, driver, direction) over moving samples only
+    for s0, s1 in _runs(moving):
+        k = s0
+        while k < s1:
+            j = k
+            while j < s1 and driver[j] == driver[k] and direction[j] == direction[k]:
+                j += 1
+            runs.append([k, j, int(driver[k]), int(direction[k])])
+            k = j
+    if not runs:
+        return [(0, n, 0, 0)]
+    # merge runs that continue the same monotone motion (a staircase's steps, a pause)
+    merged = [runs[0]]
+    for r in runs[1:]:
+        last = merged[-1]
+        if r[2] == last[2] and r[3] == last[3]:
+            last[1] = r[1]
+        else:
+            merged.append(r)
+
+    def amplitude(r):
+        s = signal_by_driver[r[2]]
+        return abs(float(s[min(r[1], n - 1)]) - float(s[r[0]]))
+
+    # a run too small to be a test (overshoot, noise) joins the previous run, then merge again
+    changed = True
+    while changed and len(merged) > 1:
+        changed = False
+        for i, r in enumerate(merged):
+            if amplitude(r) < swing_by_driver[r[2]]:
+                if i > 0:
+                    merged[i - 1][1] = r[1]
+                else:
+                    merged[1][0] = r[0]
+                merged.pop(i)
+                changed = True
+                break
+        out = [merged[0]]
+        for r in merged[1:]:
+            if r[2] == out[-1][2] and r[3] == out[-1][3]:
+                out[-1][1] = r[1]
+            else:
+                out.append(r)
+        merged = out
+    # each half-cycle runs to the start of the next (it owns the hold after it)
+    bounds = [(0 if i == 0 else r[0], merged[i + 1][0] if i + 1 < len(merged) else n, r[2], r[3])
+              for i, r in enumerate(merged)]  # fmt: skip
+    return bounds
+
+
+def label(t, x, P, starts) -> Labels:
+    """Labels of every sample of the concatenated recordings (see the module text)."""
+    t, x, P = (np.asarray(a, dtype=float) for a in (t, x, P))
+    n = len(t)
+    driver = np.zeros(n, dtype=int)
+    direction = np.zeros(n, dtype=int)
+    rate = np.zeros(n)
+    moving = np.zeros(n, dtype=bool)
+    hold = np.zeros(n, dtype=bool)
+    half = np.zeros(n, dtype=int)
+    half_info = []  # (start, end, driver, direction, global start index) per half-cycle
+    for b, e in segments(np.asarray(starts), n):
+        tt = t[b:e]
+        w = _window(tt)
+        sx, rx, mx, nx = _moving(tt, x[b:e], w)
+        sp, rp, mp, npr = _moving(tt, P[b:e], w)
+        # a length that hardly moves (noise, or a few tenths of a percent of creep) is not a stroke
+        if np.ptp(sx) < max(8 * nx, 2e-3):
+            mx[:] = False
+        if np.ptp(sp) < max(8 * npr, 1e3):
+            mp[:] = False
+        drv = np.where(mx, 0, 1)
+        mv = mx | mp
+        r = np.where(mx, rx, rp)
+        dirn = np.where(mv, np.sign(r), 0).astype(int)
+        # short flickers of motion (< 3 samples) are still
+        for s0, s1 in _runs(mv):
+            if s1 - s0 < 3:
+                mv[s0:s1] = False
+                dirn[s0:s1] = 0
+        driver[b:e] = drv
+        direction[b:e] = dirn
+        rate[b:e] = r
+        moving[b:e] = mv
+        hold[b:e] = _min_runs(~mv, tt, HOLD_S)
+        swing = {0: max(8 * nx, MIN_SWING * np.ptp(sx)), 1: max(8 * npr, MIN_SWING * np.ptp(sp))}
+        parts = _half_cycles(drv, dirn, {0: sx, 1: sp}, swing)
+        for s0, s1, d, dn in parts:
+            half[b + s0 : b + s1] = len(half_info)
+            half_info.append((b + s0, b + s1, d, dn))
+        # samples of a still recording's half-cycle take its driver
+        for s0, s1, d, _ in parts:
+            still = ~mv[s0:s1]
+            driver[b + s0 : b + s1][still] = d
+    # cycles: a new cycle at every rise, at a change of driver, and at each recording's start
+    starts_set = set(int(s) for s in starts)
+    cycle_of_half = np.zeros(len(half_info), dtype=int)
+    c = -1
+    for i, (s0, _, d, dn) in enumerate(half_info):
+        prev = half_info[i - 1] if i else None
+        if prev is None or s0 in starts_set or dn >= 0 or prev[2] != d or prev[3] <= 0:
+            c += 1
+        cycle_of_half[i] = c
+    cycle = cycle_of_half[half]
+    n_cycles = int(c + 1)
+    # level of each cycle: its median pressure
+    cycle_P = np.zeros(n_cycles)
+    for k in range(n_cycles):
+        cycle_P[k] = float(np.median(P[cycle == k]))
+    tol = max(3e3, 0.03 * float(np.max(np.abs(P), initial=0.0)))
+    levels, cycle_level = _cluster(cycle_P, tol)
+    level = cycle_level[cycle]
+    order_in_level = np.zeros(n_cycles, dtype=int)
+    counts: dict[int, int] = {}
+    for k in range(n_cycles):
+        lv = int(cycle_level[k])
+        order_in_level[k] = counts.get(lv, 0)
+        counts[lv] = order_in_level[k] + 1
+    cycle_in_level = order_in_level[cycle]
+    # rate classes per driver from the half-cycles' median moving rates
+    rate_class = np.where(moving, 0, -1)
+    for d in (0, 1):
+        rates = {}
+        for i, (s0, s1, dd, _) in enumerate(half_info):
+            r = np.abs(rate[s0:s1][moving[s0:s1] & (driver[s0:s1] == d)])
+            if dd == d and len(r) > 3:
+                rates[i] = float(np.median(r))
+        if len(rates) >= 2:
+            values = np.array(list(rates.values()))
+            if values.max() > 1.5 * values.min():
+                split = np.sqrt(values.max() * values.min())
+                for i, v in rates.items():
+                    s0, s1 = half_info[i][:2]
+                    seg = slice(s0, s1)
+                    rate_class[seg][moving[seg]] = int(v > split)
+    hold_id = np.full(n, -1)
+    for k, (s0, s1) in enumerate(_runs(hold)):
+        hold_id[s0:s1] = k
+    fold, n_folds, rule = _folds(half_info, n, t)
+    return Labels(
+        driver=driver, rate=rate, direction=direction, moving=moving, hold=hold, hold_id=hold_id,
+        cycle=cycle, level=level, levels_Pa=levels, cycle_in_level=cycle_in_level,
+        rate_class=rate_class, fold=fold, n_folds=n_folds, half_cycle=half, folds_rule=rule,
+    )  # fmt: skip
 
 
 def _cluster(values: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
@@ -203,10 +297,26 @@ def _cluster(values: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     return np.array([float(np.median(c)) for c in centres]), labels
 
 
-def _folds(cycle, level, cycle_in_level, n_cycles, t) -> tuple[np.ndarray, int]:
-    if n_cycles >= 2:
-        k = min(MAX_FOLDS, n_cycles)
-        return (level + cycle_in_level) % k, k
-    # one cycle only: alternate ten blocks of time between two folds
-    block = np.minimum((np.arange(len(t)) * 10) // max(len(t), 1), 9)
-    return block % 2, 2
+def _folds(half_info, n, t) -> tuple[np.ndarray, int, str]:
+    """Half-cycles dealt round-robin into folds; cut into time blocks when there are too few."""
+    units = [(s0, s1) for s0, s1, _, _ in half_info]
+    pieces = 1
+    if len(units) < MIN_UNITS:
+        pieces = int(np.ceil(MIN_UNITS / max(len(units), 1)))
+        cut = []
+        for s0, s1 in units:
+            edges = np.linspace(s0, s1, pieces + 1).round().astype(int)
+            cut += [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+        units = cut
+    k = max(2, min(MAX_FOLDS, len(units)))
+    fold = np.zeros(n, dtype=int)
+    for i, (s0, s1) in enumerate(units):
+        fold[s0:s1] = i % k
+    if pieces == 1:
+        rule = f"held out: whole half-cycles ({len(units)}), dealt round-robin into {k} folds"
+    else:
+        rule = (
+            f"held out: contiguous time blocks ({pieces} per half-cycle, {len(units)} in all; the test "
+            f"has only {len(half_info)} half-cycle(s)), dealt round-robin into {k} folds"
+        )
+    return fold, k, rule

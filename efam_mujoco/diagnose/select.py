@@ -60,6 +60,7 @@ class Fit:
     prediction: np.ndarray  # linearised prediction of the force, original sample order
     identifiable: dict[str, list[str]] = field(default_factory=dict)
     before_heldout_rms: float | None = None  # held-out RMS of the model it was added to
+    heldout_residual: np.ndarray | None = field(default=None, repr=False)  # per sample, held out
 
     @property
     def heldout_rms(self) -> float:
@@ -187,9 +188,11 @@ class Engine:
             for k in range(len(self.slices)):
                 th = self._solve(Gt - G[k], bt - b[k], lo, hi)
                 th = self._fill_unseen(th, Gt - G[k], owner, self.Jn.shape[1])
+                s = self.slices[k]
                 folds.append(
-                    (self._rss(Gt - G[k], bt - b[k], yyt - yy[k], th), self._rss(G[k], b[k], yy[k], th))
-                )
+                    (self._rss(Gt - G[k], bt - b[k], yyt - yy[k], th), self._rss(G[k], b[k], yy[k], th),
+                     (y[s] - A[s] @ th).astype(np.float32))
+                )  # fmt: skip
         return theta, full, folds, (fixed, A, owner)
 
     # --------------------------------------------------------------------- candidates
@@ -228,20 +231,28 @@ class Engine:
                 shapes[i] = s
             theta, full, per_fold, _ = self.fit(effects, shapes, want_folds=folds)
             results.append((shapes, full, per_fold))
-        heldout, count = self._heldout(results)
+        heldout, count, residual = self._heldout(results)
         best = min(results, key=lambda r: r[1])[0]
         best = self._refine(effects, best, free)
         theta, full, _, (fixed, A, owner) = self.fit(effects, best, want_folds=False)
-        return self._package(effects, best, theta, full, heldout, count, fixed, A, owner)
+        fit = self._package(effects, best, theta, full, heldout, count, fixed, A, owner)
+        if residual is not None:
+            fit.heldout_residual = np.empty(self.n)
+            fit.heldout_residual[self.order] = residual
+        return fit
 
     def _heldout(self, results):
+        """Pooled held-out RSS, and the held-out residual of every sample (sorted order), each fold
+        predicted with the shapes its own training data chose."""
         if not results[0][2]:
-            return float("nan"), 0
+            return float("nan"), 0, None
         total = 0.0
+        residual = np.empty(self.n)
         for k in range(len(self.slices)):
             train_best = min(results, key=lambda r: r[2][k][0])
             total += train_best[2][k][1]
-        return total, self.n
+            residual[self.slices[k]] = train_best[2][k][2]
+        return total, self.n, residual
 
     def _refine(self, effects, shapes, free):
         """Coordinate-wise bounded refinement of the free shape parameters in log space."""

@@ -1,0 +1,211 @@
+"""How sure the diagnosis is: a probability for each hypothesis, and when to say "ambiguous".
+
+**Hypotheses.** ``none`` (the re-fitted model alone), each library effect alone (fitted jointly
+with the model's parameter corrections, as ``select`` does), and ``outside the library`` (the
+residual keeps a structure no library term describes).
+
+**Which single explanation predicts best** (``bootstrap``). Every hypothesis has a held-out
+residual at every sample (each sample predicted by the fold that did not see it). The test is cut
+into its own blocks (its half-cycles, each cut into contiguous pieces until there are at least
+``MIN_BLOCKS``), the block sums of squared held-out residual are the data, and a Bayesian
+bootstrap over the blocks (Dirichlet(``concentration``) weights, ``DRAWS`` draws) asks which
+hypothesis has the smallest weighted held-out error. An effect must beat ``none`` by the
+relevance margin (its held-out RMS ``MIN_GAIN`` lower, as ``select`` requires) to win a draw. The
+fraction of draws a hypothesis wins is its raw probability of being the best predictor of
+unseen parts of this test. Blocks, not samples, are resampled: a model error is correlated over
+a half-cycle, and the spread between blocks is what says whether the data can tell two
+hypotheses apart.
+
+**Is the named physics the physics?** Winning on held-out data is not enough: an effect outside
+the library leaves structured residual after the best library term, which then takes what it
+can. ``named_physics_probability`` maps two measured quantities to the probability that the
+winning library term is the right physics: the share of the held-out excess over the noise floor
+that it removes, and the held-out gain a purely data-driven correction (``datadriven``) still
+finds on top of it. The map is a logistic function whose three coefficients, and the bootstrap's
+concentration, were fitted on calibration cases of the virtual bench (seeds ``CALIBRATION_SEEDS``,
+disjoint from the benchmark's; ``bench/bench_diagnose.py --calibrate``); the benchmark measures
+the expected calibration error on other seeds.
+
+**Reported.** p(none), p(each effect) = p_boot(effect) x p_physics, and p(outside) = the rest of
+the effects' share. The answer is the most probable hypothesis; it is *confident* when its
+probability is at least ``CONFIDENT``; otherwise, when the two most probable together hold at
+least ``PAIR`` and the first holds less than ``CONFIDENT``, the result is *ambiguous* and both are
+named (``design`` then proposes the experiment that separates them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .segment import Labels
+
+MIN_BLOCKS = 30
+DRAWS = 4000
+MIN_GAIN = 0.03
+CONFIDENT = 0.8
+PAIR = 0.0  # any split between the best two that leaves the first under CONFIDENT is ambiguous
+OUTSIDE = "outside_library"
+CALIBRATION_SEEDS = (70000, 70099)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
+
+    concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
+    a: float = -2.026  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 5.064
+    c: float = -4.584
+    tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
+    an: float = 0.946  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
+    bn: float = -5.273
+    cn: float = -6.338
+
+
+CALIBRATION = Calibration()
+
+
+def blocks(labels: Labels, n: int) -> np.ndarray:
+    """Block index per sample: half-cycles, each cut into contiguous pieces up to ``MIN_BLOCKS``."""
+    half = labels.half_cycle if labels.half_cycle is not None else np.zeros(n, dtype=int)
+    n_half = int(half.max()) + 1 if n else 0
+    pieces = max(1, int(math.ceil(MIN_BLOCKS / max(n_half, 1))))
+    if pieces == 1:
+        return half.copy()
+    out = np.zeros(n, dtype=int)
+    edges = np.flatnonzero(np.diff(np.r_[-1, half, -2]))
+    k = 0
+    for s0, s1 in zip(edges[:-1], edges[1:]):
+        cuts = np.linspace(s0, s1, pieces + 1).round().astype(int)
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            out[a:b] = k
+            k += 1
+    return out
+
+
+def bootstrap(residuals: dict[str, np.ndarray], block: np.ndarray, margin: float = MIN_GAIN,
+              concentration: float = 1.0, seed: int = 0, draws: int = DRAWS,
+              tie_margin: float = 0.0) -> dict[str, float]:  # fmt: skip
+    """Fraction of Bayesian-bootstrap draws over blocks in which each hypothesis has the smallest
+    weighted held-out squared error (effects scaled by 1/(1 - margin)^2: they must beat ``none``
+    by the relevance margin). A draw in which the runner-up's held-out RMS is within
+    ``tie_margin`` of the winner's is a tie: half a win to each. ``residuals`` maps hypothesis ->
+    held-out residual per sample."""
+    names = list(residuals)
+    nb = int(block.max()) + 1
+    sse = np.stack(
+        [np.bincount(block, weights=np.asarray(residuals[h], float) ** 2, minlength=nb) for h in names]
+    )
+    keep = np.bincount(block, minlength=nb) > 0
+    sse = sse[:, keep]
+    penalty = np.array([1.0 if h == "none" else 1.0 / (1.0 - margin) ** 2 for h in names])
+    rng = np.random.default_rng(seed)
+    w = rng.gamma(concentration, 1.0, size=(draws, sse.shape[1]))
+    totals = (w @ sse.T) * penalty  # draws x hypotheses
+    order = np.argsort(totals, axis=1)
+    first, second = order[:, 0], order[:, 1] if len(names) > 1 else order[:, 0]
+    rows = np.arange(draws)
+    # a draw whose runner-up is within the tie margin cannot tell the two apart: half a win each
+    tie = totals[rows, second] <= totals[rows, first] * (1.0 + tie_margin) ** 2
+    wins = np.bincount(first, weights=np.where(tie, 0.5, 1.0), minlength=len(names))
+    wins += np.bincount(second[tie], minlength=len(names)) * 0.5
+    return {h: float(wins[i] / draws) for i, h in enumerate(names)}
+
+
+def none_probability(excess: float, dd_gain: float, cal: Calibration = CALIBRATION) -> float:
+    """Probability that nothing is missing, when the model alone predicts best: it falls with the
+    share of the held-out mean square above the noise floor (``excess``) and with the held-out
+    gain a data-driven correction still finds."""
+    z = cal.an + cal.bn * float(np.clip(excess, 0, 1)) + cal.cn * float(np.clip(dd_gain, 0, 1))
+    return 1.0 / (1.0 + math.exp(-z))
+
+
+def named_physics_probability(excess_cut: float, dd_gain: float, cal: Calibration = CALIBRATION) -> float:
+    """Probability that the best library term is the physics (not a stand-in for something outside)."""
+    z = cal.a + cal.b * float(np.clip(excess_cut, -1, 1)) + cal.c * float(np.clip(dd_gain, 0, 1))
+    return 1.0 / (1.0 + math.exp(-z))
+
+
+@dataclass
+class Verdict:
+    """The probabilities and what the report says."""
+
+    probabilities: dict[str, float]  # hypothesis -> probability (sums to 1)
+    raw: dict[str, float]  # bootstrap win fractions
+    answer: str
+    probability: float
+    confident: bool
+    ambiguous: bool
+    contenders: list[str]  # the two named when ambiguous, else [answer]
+    physics_probability: float
+    excess_cut: float
+    dd_gain: float
+    n_blocks: int
+    excess: float = 0.0
+    dd_gain_none: float = 0.0
+    both: bool = False  # the two contenders are both needed (the pair pays over either alone)
+
+    def words(self) -> str:
+        top = sorted(self.probabilities.items(), key=lambda kv: -kv[1])[:4]
+        spread = ", ".join(f"{h} {p:.2f}" for h, p in top if p >= 0.005)
+        if self.both:
+            a, b = self.contenders
+            return (
+                f"Answer: {a} and {b}, both needed (the pair predicts held-out data better than either "
+                f"alone; p = {self.probability:.2f} that the best single explanation is one of them). "
+                f"Probabilities: {spread}."
+            )
+        if self.confident:
+            return f"Answer: {self.answer} (p = {self.probability:.2f}). Probabilities: {spread}."
+        return (
+            f"AMBIGUOUS: these data cannot separate {self.contenders[0]} and {self.contenders[1]} "
+            f"(p = {self.probabilities[self.contenders[0]]:.2f} and {self.probabilities[self.contenders[1]]:.2f}). "
+            f"Probabilities: {spread}."
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "probabilities": self.probabilities, "bootstrap_win_fraction": self.raw, "answer": self.answer,
+            "probability": self.probability, "confident": self.confident, "ambiguous": self.ambiguous,
+            "contenders": self.contenders, "both_needed": self.both, "physics_probability": self.physics_probability,
+            "excess_cut": self.excess_cut, "datadriven_gain": self.dd_gain, "blocks": self.n_blocks,
+            "excess_over_noise": self.excess, "datadriven_gain_on_none": self.dd_gain_none,
+        }  # fmt: skip
+
+
+def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: int,
+            cal: Calibration = CALIBRATION, excess: float = 0.0, dd_gain_none: float = 0.0,
+            pair: tuple[str, str] | None = None) -> Verdict:  # fmt: skip
+    """Probabilities of none / each effect / outside the library, the answer, and the doubt.
+    ``excess_cut``, ``dd_gain``: of the best library term; ``excess``, ``dd_gain_none``: of the
+    model alone (share of its held-out mean square above the noise; the data-driven gain on it).
+    ``pair``: two effects that ``select`` kept together (the pair paid over the first alone): when
+    they are the two contenders, the answer is both, not an ambiguity."""
+    q = named_physics_probability(excess_cut, dd_gain, cal)
+    q0 = none_probability(excess, dd_gain_none, cal)
+    p_none = raw.get("none", 0.0)
+    probs = {"none": p_none * q0}
+    effects = {h: p for h, p in raw.items() if h != "none"}
+    for h, p in effects.items():
+        probs[h] = p * q
+    probs[OUTSIDE] = sum(effects.values()) * (1.0 - q) + p_none * (1.0 - q0)
+    total = sum(probs.values()) or 1.0
+    probs = {h: p / total for h, p in probs.items()}
+    ranked = sorted(probs.items(), key=lambda kv: -kv[1])
+    answer, p1 = ranked[0]
+    second, p2 = ranked[1] if len(ranked) > 1 else ("", 0.0)
+    confident = p1 >= CONFIDENT
+    ambiguous = (not confident) and p1 + p2 >= PAIR
+    both = bool(pair and {answer, second} == set(pair) and not confident)
+    if both:
+        p1 = p1 + p2
+        confident, ambiguous = p1 >= CONFIDENT, p1 < CONFIDENT
+    return Verdict(
+        probabilities=probs, raw=raw, answer=answer, probability=p1, confident=confident, both=both,
+        ambiguous=ambiguous, contenders=[answer, second] if (ambiguous or both) else [answer],
+        physics_probability=q, excess_cut=excess_cut, dd_gain=dd_gain, n_blocks=n_blocks,
+        excess=excess, dd_gain_none=dd_gain_none,
+    )  # fmt: skip
