@@ -85,6 +85,7 @@ class Diagnosis:
 
     @property
     def names(self) -> list[str]:
+        """Names of the kept effects, in the order they were selected."""
         return [e["name"] for e in self.effects]
 
     @property
@@ -104,6 +105,7 @@ class Diagnosis:
         }
 
     def to_json(self) -> dict:
+        """The diagnosis as plain JSON types (the keys of ``efam diagnose --json``)."""
         return {
             "effects": [{k: e[k] for k in _EFFECT_KEYS} for e in self.effects],
             "rms_before_N": self.rms_before_N,
@@ -391,6 +393,7 @@ def _clean(value: float, p) -> float:
 
 
 def register_cli(subparsers) -> None:
+    """Add the ``efam diagnose`` subcommand (its module imports matplotlib, so it is loaded late)."""
     from .report import register_cli as _register  # the CLI needs matplotlib; import it late
 
     _register(subparsers)

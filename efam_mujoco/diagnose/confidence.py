@@ -149,6 +149,7 @@ class Verdict:
     both: bool = False  # the two contenders are both needed (the pair pays over either alone)
 
     def words(self) -> str:
+        """The answer in one sentence: the winner (or the two tied hypotheses) and the leading probabilities."""
         top = sorted(self.probabilities.items(), key=lambda kv: -kv[1])[:4]
         spread = ", ".join(f"{h} {p:.2f}" for h, p in top if p >= 0.005)
         if self.both:
@@ -167,6 +168,7 @@ class Verdict:
         )
 
     def to_json(self) -> dict:
+        """The confidence as plain JSON types."""
         return {
             "probabilities": self.probabilities, "bootstrap_win_fraction": self.raw, "answer": self.answer,
             "probability": self.probability, "confident": self.confident, "ambiguous": self.ambiguous,

@@ -59,10 +59,12 @@ class Correction:
 
     @property
     def gain(self) -> float:
+        """Fraction of the held-out RMS that the correction removes (0 when there was nothing to remove)."""
         b = self.heldout_rms_before_N
         return 1.0 - self.heldout_rms_after_N / b if b > 0 else 0.0
 
     def to_json(self) -> dict:
+        """The correction's summary as plain JSON types."""
         return {
             "heldout_rms_before_N": self.heldout_rms_before_N,
             "heldout_rms_after_N": self.heldout_rms_after_N, "heldout_gain": self.gain,
@@ -81,6 +83,7 @@ class Corrected:
     correction: Correction
 
     def push(self, time_s, length_m, pressure_Pa) -> np.ndarray:
+        """Push force (N, MuJoCo sign) of the named model plus the data-driven correction for a new test."""
         ctx = Context(np.asarray(time_s) - time_s[0], length_m, pressure_Pa, [0], self.model.muscle)
         return self.model.push(time_s, length_m, pressure_Pa) + self.correction.predict(ctx)
 

@@ -51,6 +51,7 @@ class Experiment:
     P: np.ndarray
 
     def sampled(self, hz: float = SAMPLE_HZ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The protocol resampled at ``hz``: time (s), length (m) and pressure (Pa)."""
         tt = np.arange(0.0, float(self.t[-1]), 1.0 / hz)
         return tt, np.interp(tt, self.t, self.L), np.interp(tt, self.t, self.P)
 

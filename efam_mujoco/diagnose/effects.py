@@ -86,6 +86,7 @@ def play(u: np.ndarray, width: float, starts=(0,)) -> np.ndarray:
 
 
 def running_max(u: np.ndarray, starts=(0,)) -> np.ndarray:
+    """Running maximum of ``u`` restarted at every recording start in ``starts``."""
     out = np.empty_like(u, dtype=float)
     for b, e in segments(np.asarray(starts), len(u)):
         out[b:e] = np.maximum.accumulate(u[b:e])
@@ -170,6 +171,7 @@ class Context:
 
     @classmethod
     def from_recordings(cls, recordings: list[Recording], muscle: Muscle) -> Context:
+        """The context of several recordings joined end to end (each keeps its own start)."""
         starts = np.cumsum([0] + [len(r) for r in recordings[:-1]])
         return cls(
             np.concatenate([r.time_s - r.time_s[0] for r in recordings]),
@@ -180,16 +182,19 @@ class Context:
         )
 
     def cached(self, key, make):
+        """``make()`` computed once per context and kept under ``key``."""
         if key not in self._cache:
             self._cache[key] = make()
         return self._cache[key]
 
     def dF_dL(self):
+        """Slope of the muscle's push with length at every sample (N/m), central difference."""
         h = 1e-6 * self.muscle.rest_length_m
         m = self.muscle
         return self.cached("dL", lambda: (m.push(self.P, self.L + h) - m.push(self.P, self.L - h)) / (2 * h))
 
     def dF_dP(self):
+        """Slope of the muscle's push with pressure at every sample (N/Pa), central difference."""
         m = self.muscle
         return self.cached(
             "dP", lambda: (m.push(self.P + 100.0, self.L) - m.push(self.P - 100.0, self.L)) / 200.0
@@ -212,6 +217,7 @@ class Context:
         return self.cached("eiv", make)
 
     def bladder_push(self):
+        """The bladder's share of the push force at every sample (N): minus its Eq. 2 tension terms."""
         return self.cached("bladder", lambda: -bladder_tension(self.muscle, self.P, self.L))
 
     def dF_dB(self):
@@ -260,13 +266,16 @@ class Effect:
 
     @property
     def linear(self) -> tuple[Param, ...]:
+        """The parameters that enter the force linearly (solved exactly by least squares)."""
         return tuple(p for p in self.params if not p.shape)
 
     @property
     def shapes(self) -> tuple[Param, ...]:
+        """The parameters that shape the force non-linearly (searched over their grid)."""
         return tuple(p for p in self.params if p.shape)
 
     def default_shape(self) -> dict[str, float]:
+        """The middle grid value of every shape parameter: the starting point of the search."""
         return {p.key: p.grid[len(p.grid) // 2] for p in self.shapes}
 
     def shape_range(self, ctx: Context, p: Param) -> tuple[float, tuple[float, ...], float]:
@@ -283,6 +292,7 @@ class Effect:
         raise NotImplementedError
 
     def force(self, ctx: Context, values: dict[str, float]) -> np.ndarray:
+        """The effect's added push force (N) at every sample of ``ctx`` for parameter ``values``."""
         fixed, cols = self.design(ctx, {p.key: values[p.key] for p in self.shapes})
         if self.per_recording:
             key = self.linear[0].key
@@ -292,9 +302,11 @@ class Effect:
         return fixed + (cols @ a if len(a) else 0.0)
 
     def initial_state(self) -> list[float]:
+        """The effect's state before the first sample (zeros), for stepwise replay."""
         return [0.0] * len(self.state)
 
     def step(self, values, state, sample) -> float:  # pragma: no cover - abstract
+        """Advance the effect by one sample and return its added push force (N); updates ``state`` in place."""
         raise NotImplementedError
 
 
@@ -317,14 +329,18 @@ class Sample:
 
     @property
     def x(self) -> float:
+        """The muscle's axial strain at this sample, L / L_rest - 1."""
         return self.L / self.muscle.rest_length_m - 1.0
 
     @property
     def engaged(self) -> bool:
+        """Whether the muscle carries force at this sample (a slack tension-only muscle does not)."""
         return (not self.muscle.tension_only) or self.muscle.push(self.P, self.L) != 0.0
 
 
 class Friction(Effect):
+    """Rate-independent friction: play operators in strain and in pressure, each growing with pressure."""
+
     def __init__(self):
         super().__init__(
             name="friction",
@@ -364,6 +380,7 @@ class Friction(Effect):
         return np.zeros(ctx.n), _gate(ctx, cols)
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the two play operators (strain and pressure); see :class:`Effect.step`."""
         if s.first:
             state[:] = [0.0, 0.0]
         dx = (s.L - s.L_prev) / s.muscle.rest_length_m
@@ -377,6 +394,8 @@ class Friction(Effect):
 
 
 class Viscoelasticity(Effect):
+    """Viscoelasticity: one Maxwell branch, a stiffness that grows with pressure acting on x minus its lagged value."""
+
     def __init__(self):
         super().__init__(
             name="viscoelasticity",
@@ -397,6 +416,7 @@ class Viscoelasticity(Effect):
         return np.zeros(ctx.n), _gate(ctx, -np.column_stack([d, ctx.P_MPa * d]))
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the Maxwell branch; see :class:`Effect.step`."""
         if s.first:
             state[0] = s.x
         else:
@@ -406,6 +426,8 @@ class Viscoelasticity(Effect):
 
 
 class EndEffects(Effect):
+    """End effects: the fittings shorten the active length, a correction proportional to the length slope of the force."""
+
     def __init__(self):
         super().__init__(
             name="end_effects",
@@ -427,6 +449,7 @@ class EndEffects(Effect):
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([base, decay * base]))
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the end-effect correction; see :class:`Effect.step`."""
         m = s.muscle
         h = 1e-6 * m.rest_length_m
         slope = (m.push(s.P, s.L + h) - m.push(s.P, s.L - h)) / (2 * h)
@@ -436,6 +459,8 @@ class EndEffects(Effect):
 
 
 class BraidCompliance(Effect):
+    """Braid compliance: threads that stretch with the hoop load P R_o, lengthening the thread length B."""
+
     def __init__(self):
         super().__init__(
             name="braid_compliance",
@@ -459,6 +484,7 @@ class BraidCompliance(Effect):
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([q * d, q * q * d]))
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the braid-stretch correction; see :class:`Effect.step`."""
         m = s.muscle
         q = max(s.P - m.deadband_Pa, 0.0) / 1e6 * float(m.outer_radius(s.L)) / m.rest_outer_radius_m
         h = 1e-6
@@ -468,6 +494,8 @@ class BraidCompliance(Effect):
 
 
 class Softening(Effect):
+    """Softening (Mullins effect): the bladder is stiffer on first loading to a new extreme than afterwards."""
+
     def __init__(self):
         super().__init__(
             name="softening",
@@ -492,6 +520,7 @@ class Softening(Effect):
         return np.zeros(ctx.n), _gate(ctx, (h * ctx.bladder_push())[:, None])
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the softening; see :class:`Effect.step`."""
         u = abs(s.x) * (1.0 + s.P / 0.5e6)
         state[0] = u if s.first else max(state[0], u)
         bladder = -float(bladder_tension(s.muscle, s.P, s.L))
@@ -500,6 +529,8 @@ class Softening(Effect):
 
 
 class Drift(Effect):
+    """Drift: a force that builds up over time (creep, temperature), depending on strain and pressure."""
+
     def __init__(self):
         super().__init__(
             name="drift",
@@ -521,6 +552,7 @@ class Drift(Effect):
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([s, ctx.x * s, ctx.P_MPa * s]))
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the drift; see :class:`Effect.step`."""
         tau = v["tau_s"]
         ramp = tau * -math.expm1(-s.t / tau)
         force = (v["d0_N_per_s"] + v["d1_N_per_s"] * s.x + v["d2_N_per_s_MPa"] * s.P / 1e6) * ramp
@@ -528,6 +560,8 @@ class Drift(Effect):
 
 
 class PressureLag(Effect):
+    """Pressure lag: the internal pressure follows the measured one through a first-order fill with gas-volume changes."""
+
     def __init__(self):
         super().__init__(
             name="pressure_lag",
@@ -556,6 +590,7 @@ class PressureLag(Effect):
         return _gate(ctx, m.push(P_int, ctx.L) - ctx.base), np.zeros((ctx.n, 0))
 
     def step(self, v, state, s: Sample) -> float:
+        """One sample of the lagged internal pressure and the force change it makes; see :class:`Effect.step`."""
         m = s.muscle
         tau = v["tau_s"]
         V = float(gas_volume(m, s.L))
@@ -570,6 +605,8 @@ class PressureLag(Effect):
 
 
 class ForceOffset(Effect):
+    """Force offset: the load cell's zero error, one constant per recording."""
+
     def __init__(self):
         super().__init__(
             name="force_offset",
@@ -588,6 +625,7 @@ class ForceOffset(Effect):
         return np.zeros(ctx.n), cols
 
     def step(self, v, state, s: Sample) -> float:
+        """The constant offset (N); see :class:`Effect.step`."""
         return v["offset_N"]
 
 
@@ -602,6 +640,7 @@ EFFECT_NAMES = tuple(LIBRARY)
 
 
 def get(name: str) -> Effect:
+    """The library effect called ``name``; an unknown name is a ValueError listing the known ones."""
     if name not in LIBRARY:
         raise ValueError(f"unknown effect '{name}' (known: {', '.join(EFFECT_NAMES)})")
     return LIBRARY[name]
@@ -649,13 +688,16 @@ class EffectModel:
         self.effects = [(name, check_values(name, values)) for name, values in self.effects]
 
     def push(self, time_s, length_m, pressure_Pa) -> np.ndarray:
+        """Push force (N, MuJoCo sign) of the muscle with its effects for one recording's arrays (vectorised)."""
         ctx = Context(np.asarray(time_s) - time_s[0], length_m, pressure_Pa, [0], self.muscle)
         return ctx.base + sum((get(n).force(ctx, v) for n, v in self.effects), np.zeros(ctx.n))
 
     def push_recording(self, recording: Recording) -> np.ndarray:
+        """Push force (N) of the muscle with its effects over ``recording``."""
         return self.push(recording.time_s, recording.length_m, recording.pressure_Pa)
 
     def push_stepwise(self, time_s, length_m, pressure_Pa) -> np.ndarray:
+        """Push force (N) computed sample by sample with each effect's state, as the C plugin does."""
         states = [get(n).initial_state() for n, _ in self.effects]
         out = np.empty(len(time_s))
         t0 = float(time_s[0])

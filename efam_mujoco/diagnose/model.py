@@ -34,10 +34,12 @@ FIT_SAMPLES = 3000
 
 
 def names(law: str) -> tuple[str, ...]:
+    """Names of the re-fitted parameters: the geometry, then the law's coefficients."""
     return GEOMETRY + LAWS[law].params
 
 
 def vector(muscle: Muscle) -> np.ndarray:
+    """The re-fitted parameters of ``muscle`` as one vector, in the order of :func:`names`."""
     return np.array(
         [muscle.theta_rest_deg, muscle.rest_diameter_m, muscle.bladder_volume_m3, muscle.deadband_Pa]
         + list(muscle.stress.coefficients)
@@ -57,6 +59,7 @@ def build(template: Muscle, law: str, v) -> Muscle:
 
 
 def bounds(nominal: Muscle, law: str, deadband_hi: float) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the re-fit around ``nominal`` (the dead band capped at ``deadband_hi``)."""
     theta = nominal.theta_rest_deg
     if theta < NEUTRAL_BRAID_ANGLE_DEG:
         t_lo, t_hi = max(0.5, 0.85 * theta), min(1.15 * theta, NEUTRAL_BRAID_ANGLE_DEG - 0.5)
@@ -167,6 +170,7 @@ class Linearised:
     hi: np.ndarray
 
     def vector_for(self, du: np.ndarray) -> np.ndarray:
+        """The full parameter vector for a step ``du`` in the scaled, kept parameters."""
         v = self.v0.copy()
         v[self.keep] += np.asarray(du) * self.scale[self.keep]
         return v

@@ -258,6 +258,7 @@ def _binned(x, y, n):
 
 # ----------------------------------------------------------------------------------- CLI
 def register_cli(subparsers) -> None:
+    """Add ``efam diagnose`` to the ``efam`` command line."""
     p = subparsers.add_parser(
         "diagnose",
         help="locate the model-vs-recording mismatch and name the missing physics",

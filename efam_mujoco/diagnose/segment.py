@@ -67,6 +67,7 @@ class Labels:
 
     @property
     def isometric(self) -> bool:
+        """Whether the whole test is isometric (pressure is the driver at every sample)."""
         return bool(np.all(self.driver == 1))
 
     def describe(self) -> str:

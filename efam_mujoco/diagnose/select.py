@@ -64,12 +64,15 @@ class Fit:
 
     @property
     def heldout_rms(self) -> float:
+        """RMS (N) of the held-out residual over all folds."""
         return math.sqrt(self.heldout_rss / max(self.heldout_n, 1))
 
     def chi2(self, noise: float) -> float:
+        """Chi-square of the fitted residual for a noise level ``noise`` (N)."""
         return self.rss / noise**2
 
     def bic(self, noise: float, n: int) -> float:
+        """Bayesian information criterion of the fit for ``n`` samples."""
         return self.chi2(noise) + self.k * math.log(n)
 
 
@@ -197,6 +200,7 @@ class Engine:
 
     # --------------------------------------------------------------------- candidates
     def baseline(self) -> Fit:
+        """The fit with no effect: the re-fitted model alone."""
         return self.candidate([], [])
 
     def candidate(

@@ -116,10 +116,12 @@ class Case:
 
     @property
     def names(self) -> list[str]:
+        """Names of the concealed truth effects."""
         return [e for e, _ in self.effects]
 
     @property
     def kind(self) -> str:
+        """The case's kind: clean, single, pair or outside the library."""
         if not self.effects:
             return "clean"
         if any(e in OUTSIDE for e in self.names):
@@ -159,6 +161,7 @@ def _stroke_range(m, rng):
 
 
 def plan_isobaric(rng, m) -> Plan:
+    """An isobaric MTS-style plan: strokes at 2-5 pressure levels in shuffled order."""
     rest, top = _stroke_range(m, rng)
     levels = list(rng.choice([103.4, 172.4, 206.8, 275.8, 310.3, 379.2, 413.7, 482.6, 517.1],
                              size=int(rng.integers(2, 6)), replace=False))  # fmt: skip
@@ -190,6 +193,7 @@ def plan_isobaric(rng, m) -> Plan:
 
 
 def plan_isometric(rng, m) -> Plan:
+    """An isometric plan: pressure ramps and steps at 1-4 fixed lengths."""
     rest, top = _stroke_range(m, rng)
     n_len = int(rng.integers(1, 5))
     lengths = rest + (top - rest) * np.sort(rng.uniform(0.0, 0.6, n_len))
@@ -220,6 +224,7 @@ def plan_isometric(rng, m) -> Plan:
 
 
 def plan_sinusoidal(rng, m) -> Plan:
+    """A sinusoidal plan: strokes of random mean, amplitude and frequency (chirps included) at several pressures."""
     rest, top = _stroke_range(m, rng)
     span = (top - rest) / rest
     levels = list(
@@ -271,6 +276,7 @@ def plan_sinusoidal(rng, m) -> Plan:
 
 
 def plan_mixed(rng, m) -> Plan:
+    """A mixed plan: strokes, holds and pressure ramps in one file."""
     rest, top = _stroke_range(m, rng)
     prog = _Program(rest)
     prog.go(rng.uniform(3, 8))
