@@ -117,16 +117,14 @@ def build_spec(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjSpec:
     """
     if muscles not in ("plugin", "affine"):
         raise ValueError(f"muscles must be 'plugin' or 'affine', got {muscles!r}")
-    if arm.mode == "pcc":
-        from .pcc import build_pcc_spec
-
-        return build_pcc_spec(arm, muscles)
     spec = _new_spec(arm)
     base = _add_base(spec, arm)
     parent, parent_parts = base, None
     for j, section in enumerate(arm.sections, start=1):
         parent, parent_parts = _add_section(spec, arm, j, section, parent, parent_parts)
-        _add_muscles(spec, arm, j, section, muscles == "affine")
+        _add_muscles(spec, arm, j, section, muscles == "affine", segmented=arm.mode == "segmented")
+        if arm.mode == "pcc":
+            _add_pcc_coupling(spec, arm, j, section)
     _finish(spec, arm, parent)
     return spec
 
@@ -219,7 +217,7 @@ def segment_coefficients(section: SectionSpec, j: int, k: int, i: int) -> dict[s
     return {f"s{j}d{k}_bend_x": y / 2, f"s{j}d{k}_bend_y": -x / 2}
 
 
-def _add_muscles(spec, arm: ArmSpec, j: int, section: SectionSpec, affine: bool):
+def _add_muscles(spec, arm: ArmSpec, j: int, section: SectionSpec, affine: bool, segmented: bool = True):
     D = section.disks
     for i, muscle in enumerate(section.muscles):
         name = f"s{j}m{i + 1}"
@@ -235,6 +233,13 @@ def _add_muscles(spec, arm: ArmSpec, j: int, section: SectionSpec, affine: bool)
                 totals[joint] = totals.get(joint, 0.0) + c
         for joint, c in totals.items():
             whole.wrap_joint(joint, c)
+        if not segmented:  # PCC: one force along the whole muscle
+            actuator = _add_actuator(spec, arm, name, name)
+            if affine:
+                _make_affine(actuator, muscle, arm.max_pressure_Pa / 2)
+            else:
+                actuator.plugin = _shared_instance(spec, muscle, 1)
+            continue
         for seg_name, coefs in segments:
             tendon = spec.add_tendon(name=seg_name)
             for joint, c in coefs.items():
@@ -246,6 +251,42 @@ def _add_muscles(spec, arm: ArmSpec, j: int, section: SectionSpec, affine: bool)
         else:
             actuator = _add_actuator(spec, arm, name, name)
             actuator.plugin = _shared_instance(spec, muscle, len(segments))
+
+
+#: PCC mode: coupling springs this many times stiffer than the muscles (at rest, zero pressure)
+PCC_STIFFNESS_RATIO = 10.0
+#: PCC mode: relaxation time of the coupling springs' dampers (their damping = stiffness x this)
+PCC_RELAXATION_S = 0.004
+
+
+def _add_pcc_coupling(spec, arm: ArmSpec, j: int, section: SectionSpec):
+    """PCC: every half-link of the section extends like the next and every link bends like the
+    next, held by conservative springs on the differences (fixed tendons with stiffness), a
+    penalty (no constraint: nothing numerical decides the rest pose). The springs are
+    ``PCC_STIFFNESS_RATIO`` times stiffer than the muscles they couple, and damped with the
+    time constant ``PCC_RELAXATION_S`` (their damping counts in the damping work)."""
+    D = section.disks
+    k_muscles = sum(-(m.push(0.0, m.rest_length_m * 1.000001) - m.push(0.0, m.rest_length_m * 0.999999))
+                    / (2e-6 * m.rest_length_m) for m in section.muscles)  # fmt: skip
+    axial = PCC_STIFFNESS_RATIO * 2 * D * k_muscles  # a half-link's muscles
+    offsets = section.offsets_m()
+    bend = {
+        "x": PCC_STIFFNESS_RATIO * D * k_muscles / len(section.muscles) * float(np.sum(offsets[:, 1] ** 2)),
+        "y": PCC_STIFFNESS_RATIO * D * k_muscles / len(section.muscles) * float(np.sum(offsets[:, 0] ** 2)),
+    }
+    extensions = [f"s{j}d{k}_ext_{e}" for k in range(1, D + 1) for e in ("a", "b")]
+    pairs = [(a, b, axial) for a, b in zip(extensions[:-1], extensions[1:])]
+    for axis in ("x", "y"):
+        pairs += [(f"s{j}d{k}_bend_{axis}", f"s{j}d{k + 1}_bend_{axis}", bend[axis]) for k in range(1, D)]
+    for a, b, stiffness in pairs:
+        tendon = spec.add_tendon(
+            name=f"pcc_{a}",
+            stiffness=stiffness,
+            damping=stiffness * PCC_RELAXATION_S,
+            springlength=[0.0, 0.0],
+        )
+        tendon.wrap_joint(a, 1.0)
+        tendon.wrap_joint(b, -1.0)
 
 
 def _add_actuator(spec, arm, name, tendon):
