@@ -1,17 +1,21 @@
-"""Steps per second of the 3x3 EFAM arm: plugin muscles vs MuJoCo's built-in affine actuators.
+"""The arm's benchmarks: speed (plugin vs built-in affine actuators, segmented vs PCC vs the former
+constrained arm), the random-pressure sweep, the D convergence table, the undamped energy run.
 
-Both models are the same arm from the same builder (``arm.arm_3x3()``: hanging, gravity on,
-pressure lag, the shipped time step); only the actuators differ (``muscles="affine"``: the muscle
-model linearised, MuJoCo's speed limit for a tendon actuator). Both follow the same pressure
-schedule (slow sinusoids, phase-shifted per muscle). Measured side by side in one process,
-interleaved repeats, medians; single thread. Writes ``bench/results/arm.json``.
+    python bench/bench_arm.py speed [--steps 3000] [--repeats 5]
+    python bench/bench_arm.py sweep [--sets 200]       # gravity off, 3/4/6 muscles x 1/2/3 sections
+    python bench/bench_arm.py convergence              # tip error vs the continuum reference, D = 4..32
+    python bench/bench_arm.py energy                   # damping 0, D = 4, RK4 at 0.1 ms, 10 s
 
-    python bench/bench_arm.py [--steps 4000] [--repeats 9]
+Speed is measured side by side in one process, interleaved repeats, medians, single thread; the
+former constrained 3x3 arm (60 dof, 51 equality rows) is ``bench/reference/arm_3x3_constrained.xml``
+(the shipped model before the physical arm). Each command updates its key of
+``bench/results/arm.json``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import platform
 import statistics
 import sys
@@ -21,91 +25,226 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from efam_mujoco import arm
+from efam_mujoco import arm, load_muscle, plugin
+from efam_mujoco.arm import continuum
 from efam_mujoco.files import write_json_atomic
+from efam_mujoco.progress import progress
 
-RESULTS = Path(__file__).resolve().parent / "results" / "arm.json"
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results" / "arm.json"
+CONSTRAINED = HERE / "reference" / "arm_3x3_constrained.xml"
 
 
-def pressure_schedule(model: mujoco.MjModel, steps: int, max_pressure: float) -> np.ndarray:
+def pressure_schedule(
+    nu: int, timestep: float, steps: int, max_pressure: float, per_muscle: int = 1
+) -> np.ndarray:
     """(steps, nu) pressures: 0.5 Hz sinusoids between 20 % and 90 % of the range, each muscle
-    phase-shifted so the arm extends and bends."""
-    t = np.arange(steps)[:, None] * model.opt.timestep
-    phase = np.arange(model.nu)[None, :] * (2 * np.pi / 3)
-    return max_pressure * (0.55 + 0.35 * np.sin(2 * np.pi * 0.5 * t + phase))
+    phase-shifted (``per_muscle`` consecutive actuators share one muscle's pressure)."""
+    t = np.arange(steps)[:, None] * timestep
+    muscle = np.arange(nu)[None, :] // per_muscle
+    return max_pressure * (0.55 + 0.35 * np.sin(2 * np.pi * 0.5 * t + muscle * (2 * np.pi / 3)))
 
 
-def run(model: mujoco.MjModel, controls: np.ndarray) -> tuple[float, float]:
-    """Steps per second over the schedule, and mean solver iterations (a check that both arms
-    did comparable work)."""
+def run(model: mujoco.MjModel, controls: np.ndarray) -> float:
     data = mujoco.MjData(model)
-    iterations = 0
     start = time.perf_counter()
     for ctrl in controls:
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data)
-        iterations += data.solver_niter[0]
     elapsed = time.perf_counter() - start
     if not np.all(np.isfinite(data.qpos)):
         raise RuntimeError("simulation diverged")
-    return len(controls) / elapsed, iterations / len(controls)
+    return len(controls) / elapsed
+
+
+def speed(args) -> dict:
+    plugin.load()
+    D = arm.DEFAULT_DISKS
+    variants = {
+        f"segmented D={D} plugin": (arm.build_model(arm.arm_3x3()), 1),
+        f"segmented D={D} affine": (arm.build_model(arm.arm_3x3(), muscles="affine"), 2 * D),
+        "segmented D=4 plugin": (arm.build_model(arm.arm_3x3(disks=4)), 1),
+        "segmented D=4 affine": (arm.build_model(arm.arm_3x3(disks=4), muscles="affine"), 8),
+        f"pcc D={D} plugin": (arm.build_model(arm.arm_3x3(mode="pcc")), 1),
+        "pcc D=4 plugin": (arm.build_model(arm.arm_3x3(mode="pcc", disks=4)), 1),
+        "constrained (former arm_3x3, D=4)": (mujoco.MjModel.from_xml_path(str(CONSTRAINED)), 1),
+    }
+    controls = {
+        name: pressure_schedule(m.nu, m.opt.timestep, args.steps, arm.MAX_TESTED_PRESSURE_PA, per)
+        for name, (m, per) in variants.items()
+    }
+    for name, (m, _) in variants.items():  # warm up
+        run(m, controls[name][:200])
+    rates = {name: [] for name in variants}
+    for repeat in progress(range(args.repeats), "speed"):
+        order = list(variants) if repeat % 2 == 0 else list(variants)[::-1]
+        for name in order:
+            rates[name].append(run(variants[name][0], controls[name]))
+    median = {name: statistics.median(r) for name, r in rates.items()}
+    ratio = {
+        f"D={D}": median[f"segmented D={D} plugin"] / median[f"segmented D={D} affine"],
+        "D=4": median["segmented D=4 plugin"] / median["segmented D=4 affine"],
+    }
+    old = median["constrained (former arm_3x3, D=4)"]
+    for name, rate in median.items():
+        m = variants[name][0]
+        print(
+            f"{name:36s} nv {m.nv:3d}  neq {m.neq:2d}  {rate:8.0f} steps/s  ({rate / old:.2f} x the constrained arm)"
+        )
+    for key, value in ratio.items():
+        print(f"plugin / built-in affine at {key}: {value:.3f} (goal >= 0.95)")
+    return {
+        "model": "3x3 FAM1 arm, hanging, gravity on, pressure lag, dt 1 ms, implicitfast",
+        "steps_per_run": args.steps,
+        "repeats": args.repeats,
+        "threads": 1,
+        "steps_per_s": median,
+        "steps_per_s_all": rates,
+        "nv": {name: int(m.nv) for name, (m, _) in variants.items()},
+        "ratio_plugin_over_affine": ratio,
+        "ratio_to_constrained": {name: rate / old for name, rate in median.items()},
+        "goal_ratio": 0.95,
+        "meets_goal": all(v >= 0.95 for v in ratio.values()),
+    }
+
+
+def random_pressures(rng, count, strong):
+    if not strong:
+        return rng.uniform(0.0, arm.MAX_TESTED_PRESSURE_PA, count)
+    p = rng.uniform(0.0, 0.1, count)
+    p[rng.choice(count, size=rng.integers(1, count), replace=False)] = rng.uniform(0.85, 1.0)
+    return p * arm.MAX_TESTED_PRESSURE_PA
+
+
+def sweep(args) -> dict:
+    """Gravity off, random pressure sets (every second strongly differential) per layout: worst
+    tip error vs the continuum reference (CC here), and how far any segment got outside its
+    muscle's admissible lengths (no other limit exists)."""
+    fam1 = load_muscle("FAM1")
+    out = {}
+    for muscles in (3, 4, 6):
+        for sections in (1, 2, 3):
+            rng = np.random.default_rng(100 * muscles + sections)
+            spec = arm.ArmSpec(
+                sections=(arm.SectionSpec(muscles=(fam1,) * muscles),) * sections,
+                gravity=False,
+                pressure_tau_s=0.0,
+            )
+            model = arm.build_model(spec)
+            errors, beyond, failed = [], 0, 0
+            for case in progress(range(args.sets), f"{muscles} muscles x {sections}"):
+                pressures = [random_pressures(rng, muscles, case % 2 == 1) for _ in range(sections)]
+                data = mujoco.MjData(model)
+                failed += not arm.static_equilibrium(model, data, np.concatenate(pressures))
+                reference = continuum.solve_arm(spec.sections, pressures)
+                errors.append(
+                    np.linalg.norm(arm.tip_in_base(model, data) - reference.tip_position_m)
+                    / spec.rest_length_m
+                )
+                N = 2 * spec.sections[0].disks
+                for name in (n for s in arm.muscle_names(spec) for n in s):
+                    lengths = N * arm.muscle_segment_lengths(model, data, name)
+                    beyond += int(np.any((lengths < fam1.min_length_m) | (lengths > fam1.max_length_m)))
+            key = f"{muscles}x{sections}"
+            out[key] = {
+                "sets": args.sets,
+                "worst_tip_error_pct": 100 * max(errors),
+                "median_tip_error_pct": 100 * float(np.median(errors)),
+                "muscles_beyond_admissible": beyond,
+                "not_converged": failed,
+            }
+            print(f"{muscles} muscles x {sections} sections: {args.sets} sets, worst tip error {100 * max(errors):.3f} % "
+                  f"of rest length (median {100 * np.median(errors):.3f} %), {beyond} muscles beyond admissible, "
+                  f"{failed} not converged")  # fmt: skip
+    return out
+
+
+CASES = {
+    # label: (orientation, sections, pressures kPa per section, payload kg, gravity)
+    "oblique bend 333 deg (517/0/300 kPa), gravity off": ("upright", 1, [517, 0, 300], 0.0, False),
+    "bend 185 deg (300/200/100 kPa), gravity off": ("upright", 1, [300, 200, 100], 0.0, False),
+    "hanging 2x3, 200/300/300 kPa": ("hanging", 2, [200, 300, 300], 0.0, True),
+    "horizontal 1x3, 300/450/450 kPa, 1 kg": ("horizontal", 1, [300, 450, 450], 1.0, True),
+    "horizontal 2x3, 300/400/400 kPa, 0.5 kg": ("horizontal", 2, [300, 400, 400], 0.5, True),
+    "upright 1x3, 517/480/480 kPa, 0.2 kg": ("upright", 1, [517, 480, 480], 0.2, True),
+}
+
+
+def convergence(args) -> dict:
+    """Tip error vs the continuum reference, % of the arm's rest length, for D = 4, 8, 16, 32."""
+    out = {}
+    for label, (orientation, sections, kpa, payload, gravity) in CASES.items():
+        row = {}
+        pressures = [np.array(kpa) * 1e3] * sections
+        for D in args.disks:
+            spec = arm.ArmSpec(
+                sections=(arm.paper_section(D),) * sections, orientation=orientation, payload_kg=payload,
+                gravity=gravity, pressure_tau_s=0.0,
+            )  # fmt: skip
+            model = arm.build_model(spec)
+            data = mujoco.MjData(model)
+            arm.static_equilibrium(model, data, np.concatenate(pressures))
+            if D == args.disks[0]:
+                reference = continuum.solve_arm_spec(spec, pressures)
+            row[D] = 100 * float(
+                np.linalg.norm(arm.tip_in_base(model, data) - reference.tip_position_m) / spec.rest_length_m
+            )
+        out[label] = row
+        print(f"{label:48s} " + "  ".join(f"D={D}: {e:.3f} %" for D, e in row.items()))
+    return out
+
+
+def energy(args) -> dict:
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    from test_arm_energy import released_arm, run_energy_balance
+
+    out = {}
+    for mode in ("segmented", "pcc"):
+        model, data, total = released_arm(4, 1e-4, 0.0, mujoco.mjtIntegrator.mjINT_RK4, mode)
+        kinetic, drift, _, _ = run_energy_balance(model, data, total, 10.0)
+        out[mode] = {
+            "largest_kinetic_J": kinetic,
+            "drift_J": drift,
+            "drift_pct_of_kinetic": 100 * drift / kinetic,
+        }
+        print(
+            f"{mode}: D = 4, RK4 0.1 ms, 10 s undamped: drift {100 * drift / kinetic:.3f} % of {kinetic:.3f} J"
+        )
+        model, data, total = released_arm(arm.DEFAULT_DISKS, 1e-3, 1.0, mode=mode)
+        _, _, lost, work = run_energy_balance(model, data, total, 3.0)
+        out[mode]["damped_lost_J"], out[mode]["damped_work_J"] = lost, work
+        print(f"{mode}: default D, dt, damping: lost {lost:.5f} J, damping work {work:.5f} J")
+    return out
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=4000, help="steps per timed run")
-    parser.add_argument("--repeats", type=int, default=9, help="interleaved repeats per variant")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("speed")
+    p.add_argument("--steps", type=int, default=3000)
+    p.add_argument("--repeats", type=int, default=5)
+    p = sub.add_parser("sweep")
+    p.add_argument("--sets", type=int, default=200)
+    p = sub.add_parser("convergence")
+    p.add_argument("--disks", type=int, nargs="+", default=[4, 8, 16, 32])
+    sub.add_parser("energy")
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
-
-    spec = arm.arm_3x3()
-    models = {name: arm.build_model(spec, muscles=name) for name in ("plugin", "affine")}
-    controls = pressure_schedule(models["plugin"], args.steps, spec.max_pressure_Pa)
-    for model in models.values():  # warm up caches and the plugin
-        run(model, controls[:500])
-
-    rates = {name: [] for name in models}
-    iterations = {name: [] for name in models}
-    for repeat in range(args.repeats):
-        order = list(models) if repeat % 2 == 0 else list(models)[::-1]  # alternate who goes first
-        for name in order:
-            rate, iters = run(models[name], controls)
-            rates[name].append(rate)
-            iterations[name].append(iters)
-
-    median = {name: statistics.median(r) for name, r in rates.items()}
-    ratio = median["plugin"] / median["affine"]
-    model = models["plugin"]
-    result = {
-        "benchmark": "3x3 EFAM arm, plugin muscles vs built-in affine actuators",
-        "model": "arm_3x3 (hanging, gravity on, pressure lag)",
-        "nq": int(model.nq),
-        "nv": int(model.nv),
-        "nu": int(model.nu),
-        "neq": int(model.neq),
-        "timestep_s": float(model.opt.timestep),
-        "steps_per_run": args.steps,
-        "repeats": args.repeats,
-        "threads": 1,
-        "steps_per_s": {"plugin": median["plugin"], "affine": median["affine"]},
-        "steps_per_s_all": rates,
-        "mean_solver_iterations": {k: statistics.mean(v) for k, v in iterations.items()},
-        "ratio_plugin_over_affine": ratio,
-        "goal_ratio": 0.95,
-        "meets_goal": ratio >= 0.95,
+    result = {"speed": speed, "sweep": sweep, "convergence": convergence, "energy": energy}[args.command](
+        args
+    )
+    doc = json.loads(args.out.read_text()) if args.out.exists() else {}
+    if "benchmark" in doc:  # the former single-benchmark layout
+        doc = {}
+    doc[args.command] = result
+    doc["environment"] = {
         "mujoco": mujoco.__version__,
         "python": platform.python_version(),
         "machine": platform.machine(),
     }
-    write_json_atomic(args.out, result)
-    print(
-        f"3x3 arm ({model.nv} dof, {model.nu} muscles): plugin {median['plugin']:.0f} steps/s, "
-        f"affine {median['affine']:.0f} steps/s, ratio {ratio:.3f} (goal >= 0.95)"
-    )
-    print(f"solver iterations/step: plugin {result['mean_solver_iterations']['plugin']:.2f}, "
-          f"affine {result['mean_solver_iterations']['affine']:.2f}")  # fmt: skip
+    write_json_atomic(args.out, doc)
     print(f"wrote {args.out}")
-    return 0 if ratio >= 0.95 else 1
+    return 0
 
 
 if __name__ == "__main__":

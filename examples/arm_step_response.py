@@ -22,7 +22,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from efam_mujoco import arm, plugin  # noqa: E402
-from efam_mujoco.statics import solve_arm  # noqa: E402
+from efam_mujoco.arm.continuum import solve_arm_spec  # noqa: E402
 
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
 STEPS = ((0.5, "all", 310e3), (3.0, "first", 517.1e3))  # (time, which muscles, pressure)
@@ -61,12 +61,8 @@ def static_tip(spec, model, pressures):
     base = model.body("base").id
     rot, origin = data.xmat[base].reshape(3, 3), data.xpos[base]
     gravity = rot.T @ model.opt.gravity
-    state = solve_arm(
-        spec.sections,
-        np.reshape(pressures, (len(spec.sections), 3)),
-        gravity_m_s2=gravity,
-        point_masses=arm.point_masses(spec),
-    )
+    del gravity  # the spec's orientation gives the same gravity in the base frame
+    state = solve_arm_spec(spec, np.reshape(pressures, (len(spec.sections), 3)))
     return origin + rot @ state.tip_position_m
 
 

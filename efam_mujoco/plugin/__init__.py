@@ -197,10 +197,18 @@ def _number(value: float) -> str:
 SENSOR_EFFECTS = ("force_offset",)
 
 
-def plugin_config(muscle: Muscle, effects=None) -> dict[str, str]:
+def plugin_config(muscle: Muscle, effects=None, segments: int = 1) -> dict[str, str]:
     """The ``<config key=... value=...>`` pairs of the efam.muscle plugin for ``muscle``, with
     the ``effects`` (``[(name, parameters), ...]``, as ``EffectModel`` and ``Diagnosis.effects``
-    hold them) switched on; see :func:`effects_config`."""
+    hold them) switched on; see :func:`effects_config`.
+
+    ``segments`` = N > 1: each actuator of the instance drives the tendon of a whole muscle, and
+    the N tendons that follow that tendon (in tendon order) are the muscle's segments between
+    consecutive spacer disks, of equal resting length; every segment pushes with
+    ``muscle.push(P, N * segment_length)`` at the actuator's one pressure state (the actuator
+    applies the whole muscle's push, the plugin's passive stage the difference per segment)."""
+    if int(segments) != segments or segments < 1:
+        raise ValueError(f"segments must be a whole number >= 1, got {segments!r}")
     config = {
         "rest_length_m": _number(muscle.rest_length_m),
         "rest_diameter_m": _number(muscle.rest_diameter_m),
@@ -214,6 +222,8 @@ def plugin_config(muscle: Muscle, effects=None) -> dict[str, str]:
     config["tension_only"] = "1" if muscle.tension_only else "0"
     config["lock_stiffness_N_per_m"] = _number(muscle.lock_stiffness_N_per_m)
     config.update(effects_config(effects))
+    if segments > 1:
+        config["segments"] = str(int(segments))
     return config
 
 

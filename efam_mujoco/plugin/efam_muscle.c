@@ -131,9 +131,12 @@ static const char* const kAttributes[] = {
     "rest_length_m", "rest_diameter_m", "theta_rest_deg", "bladder_volume_m3", "deadband_Pa",
     "law",           "tension_only",    "lock_stiffness_N_per_m",
     "E1_Pa",         "E2",              "E3_Pa",          "E3",          "E4_Pa", "E4",
+    "segments",
 };
 #define NATTRIBUTE ((int)(sizeof(kAttributes) / sizeof(kAttributes[0])))
 #define FIRST_COEF_ATTRIBUTE 8
+#define LAST_COEF_ATTRIBUTE 13  // E4; the keys after it are not stress-law coefficients
+#define MAX_SEGMENTS 1024       // segments per muscle (config key `segments`)
 
 // ----------------------------------------------------- scalar helpers (shared with efam_effects.h)
 
@@ -219,6 +222,12 @@ typedef struct {
   double arccot_scale;    // E3 * (2 / pi)
 
   EffectsConfig effects;  // efam_effects.h: the effect terms switched on (count 0: none)
+
+  // segmented muscles (config key `segments` = N > 1): each actuator drives the tendon of the
+  // whole muscle, and the N tendons that follow it (in tendon order) are its segments between
+  // consecutive spacer disks, all of equal resting length. Segment k pushes like the whole
+  // muscle at N times its length (uniform deformation), at the muscle's one pressure state.
+  int segments;
 
   // the actuators this instance drives
   // pressure sensors (<sensor><plugin instance=.../>): where each writes its nactuator values
@@ -598,7 +607,7 @@ static void read_coefficients(const mjModel* m, int instance, Muscle* mu) {
     strcat(expected, law->keys[k]);
   }
   // a coefficient of another law is a mistake (E3 given where E3_Pa is meant, say)
-  for (int a = FIRST_COEF_ATTRIBUTE; a < NATTRIBUTE; a++) {
+  for (int a = FIRST_COEF_ATTRIBUTE; a <= LAST_COEF_ATTRIBUTE; a++) {
     if (config_value(m, instance, kAttributes[a]) && !law_has_key(law, kAttributes[a])) {
       CONFIG_ERROR(m, instance, "config key '%s' is not a coefficient of stress law '%s' (expected %s)",
                    kAttributes[a], law->name, expected);
@@ -735,6 +744,10 @@ static void check_actuators(const mjModel* m, int instance) {
   }
 }
 
+// segmented muscles (below the callbacks)
+static void check_segments(const mjModel* m, int instance, const Muscle* mu);
+static void add_segment_forces(const mjModel* m, mjData* d, const Muscle* mu);
+
 // Read, validate and derive everything before allocating, so that an error (which does not
 // return) leaks nothing.
 static Muscle* muscle_create(const mjModel* m, int instance) {
@@ -763,6 +776,11 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
   derive(m, instance, &mu);
   check_stable(m, instance, &mu);
   effects_configure(m, instance, &mu.effects, EFFECTS_MUSCLE_OF(mu));  // efam_effects.h
+  double segments = read_number(m, instance, "segments", 0, 1.0);
+  require(m, instance, segments >= 1 && segments <= MAX_SEGMENTS && segments == floor(segments), "segments",
+          segments, "must be a whole number from 1 to 1024");
+  mu.segments = (int)segments;
+  check_segments(m, instance, &mu);
 
   int nsensor = 0;
   for (int j = 0; j < m->nsensor; j++) {
@@ -852,6 +870,12 @@ static void muscle_compute(const mjModel* m, mjData* d, int instance, int capabi
     write_pressure_sensors(m, d, mu);
     return;
   }
+  if (capability_bit == mjPLUGIN_PASSIVE) {
+    if (mu->segments > 1) {
+      add_segment_forces(m, d, mu);
+    }
+    return;
+  }
   if (mu->nactuator < MIN_BATCH) {
     for (int k = 0; k < mu->nactuator; k++) {
       int i = mu->actuator[k];
@@ -878,6 +902,81 @@ static void muscle_compute(const mjModel* m, mjData* d, int instance, int capabi
   }
   if (mu->effects.count) {  // efam_effects.h: the effect terms, on top of the forces just written
     effects_add_forces(m, d, instance, &mu->effects, mu->actuator, mu->nactuator);
+  }
+}
+
+
+// ------------------------------------------------------------------- segmented muscles
+//
+// With `segments` = N > 1 the actuator applies push(P, L) on the whole muscle's tendon (length
+// L = the sum of its segments), and the passive stage adds, for every segment k,
+// (push(P, N l_k) - push(P, L)) J_k: in total every segment carries its own force
+// push(P, N l_k) along its own Jacobian J_k. The pressure is the actuator's state (ctrl, or the
+// activation of its filter), so one pressure lag serves all segments of a muscle.
+
+static void add_segment_forces(const mjModel* m, mjData* d, const Muscle* mu) {
+  const int N = mu->segments;
+  double pressure[BATCH], length[BATCH], tension[BATCH];
+  int tendon[BATCH];
+  double whole[BATCH];  // push(P, L) of the actuator each batch entry belongs to
+  int n = 0;
+  for (int k = 0; k < mu->nactuator; k++) {
+    int i = mu->actuator[k];
+    int first = m->actuator_trnid[2 * i] + 1;
+    double P = actuator_pressure(m, d, i);
+    double L = d->actuator_length[m->actuator_outadr[i]];
+    double whole_push = -muscle_tension(mu, P, L);
+    for (int s = 0; s < N; s++) {
+      pressure[n] = P;
+      length[n] = N * d->ten_length[first + s];
+      tendon[n] = first + s;
+      whole[n] = whole_push;
+      n++;
+      if (n == BATCH || (k == mu->nactuator - 1 && s == N - 1)) {
+        tension_batch(mu, n, pressure, length, tension);
+        for (int e = 0; e < n; e++) {
+          double extra = -tension[e] - whole[e];
+          int t = tendon[e], adr = m->ten_J_rowadr[t];
+          for (int c = 0; c < m->ten_J_rownnz[t]; c++) {
+            d->qfrc_passive[m->ten_J_colind[adr + c]] += extra * d->ten_J[adr + c];
+          }
+        }
+        n = 0;
+      }
+    }
+  }
+}
+
+// Segmented muscles: every actuator of the instance drives the tendon of a whole muscle, its N
+// segments follow that tendon, one pressure state (no actearly: the passive stage runs before
+// the activation derivative is known), no effect terms (they are defined on a whole muscle).
+static void check_segments(const mjModel* m, int instance, const Muscle* mu) {
+  if (mu->segments == 1) {
+    return;
+  }
+  if (mu->effects.count) {
+    CONFIG_ERROR(m, instance, "config key 'segments' = %d: effect terms are not supported on segmented muscles%s",
+                 mu->segments, "");
+  }
+  for (int i = 0; i < m->nactuator; i++) {
+    if (m->actuator_plugin[i] != instance) {
+      continue;
+    }
+    if (m->actuator_trntype[i] != mjTRN_TENDON) {
+      CONFIG_ERROR(m, instance, "config key 'segments' = %d needs a tendon transmission (the whole muscle)%s",
+                   mu->segments, "");
+    }
+    int first = m->actuator_trnid[2 * i] + 1;
+    if (first + mu->segments > m->ntendon) {
+      CONFIG_ERROR(m, instance,
+                   "config key 'segments' = %d: the %d tendons after the muscle's tendon (its segments) "
+                   "do not exist (%d tendons in the model)",
+                   mu->segments, mu->segments, (int)m->ntendon);
+    }
+    if (m->actuator_actearly[i]) {
+      CONFIG_ERROR(m, instance, "config key 'segments' = %d: actearly is not supported on segmented muscles%s",
+                   mu->segments, "");
+    }
   }
 }
 
@@ -945,7 +1044,8 @@ EFAM_EXPORT int efam_muscle_register(void) {
   mjpPlugin plugin;
   mjp_defaultPlugin(&plugin);
   plugin.name = PLUGIN_NAME;
-  plugin.capabilityflags |= mjPLUGIN_ACTUATOR | mjPLUGIN_SENSOR;  // sensor: the pressures
+  // sensor: the pressures; passive: the segment forces of segmented muscles
+  plugin.capabilityflags |= mjPLUGIN_ACTUATOR | mjPLUGIN_SENSOR | mjPLUGIN_PASSIVE;
   plugin.needstage = mjSTAGE_POS;
   plugin.nsensordata = muscle_nsensordata;
   // efam_effects.h: the muscle's keys, then `effects` and the effect parameter keys

@@ -1,0 +1,542 @@
+"""The MuJoCo arm (:func:`build_spec`): bodies, joints, segmented muscles, masses, sensors.
+
+Per section j, D links. Link k runs from disk ``s{j}d{k-1}`` (``s{j}d0`` is the previous
+section's end plate, or ``base``) to disk ``s{j}d{k}``, through a hinge node ``s{j}h{k}`` at its
+middle. The joints of link k, and all the joints there are:
+
+* slide ``s{j}d{k}_ext_a`` along the previous disk's axis (the node, a half-link away); its value
+  is that half-link's length (``ref`` = its resting length);
+* hinges ``s{j}d{k}_bend_x`` and ``s{j}d{k}_bend_y`` at the node (a universal joint: bending about
+  two axes, no twist to first order; their order alternates from link to link so that the
+  second-order twist of one link is undone by the next);
+* slide ``s{j}d{k}_ext_b`` along the node's new axis to the next disk.
+
+So a straight link is two half-links end to end and a bent one the two tangents of an arc that
+meet at the node: extension and bending only, no shear, no constraint. Each muscle has one
+segment per half-link, a fixed tendon whose length is exactly the length of the muscle's arc at
+its offset y in that half (l = ext - y . theta / 2, with theta the link's bend): linear in the
+joints, so the muscle forces are exact functions of the strains and conservative.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from .. import plugin
+from ..files import write_text_atomic
+from ..muscle import Muscle
+from .masses import FITTING_LENGTH_M, FITTING_RADIUS_M
+from .spec import ORIENTATIONS, ArmSpec, SectionSpec, arm_1x3, arm_3x3
+
+_MUSCLE_RGBA = ((0.85, 0.33, 0.1, 1), (0.1, 0.45, 0.75, 1), (0.2, 0.6, 0.25, 1), (0.55, 0.3, 0.65, 1))
+
+
+# --------------------------------------------------------------------------- lumped masses
+
+
+@dataclass
+class _Inertia:
+    """Accumulates point-like parts (mass, position, inertia about their own centre)."""
+
+    parts: list = field(default_factory=list)
+
+    def add(self, mass, pos, own):
+        if mass > 0:
+            self.parts.append((float(mass), np.asarray(pos, dtype=float), np.asarray(own, dtype=float)))
+
+    @property
+    def mass(self) -> float:
+        return sum(m for m, _, _ in self.parts)
+
+    def com_and_tensor(self):
+        total = self.mass
+        com = sum(m * p for m, p, _ in self.parts) / total
+        tensor = np.zeros((3, 3))
+        for m, p, own in self.parts:
+            d = p - com
+            tensor += own + m * (d @ d * np.eye(3) - np.outer(d, d))
+        return com, tensor
+
+
+def _tube(mass, radius, length):
+    """Inertia of a thin-walled tube along z about its centre."""
+    transverse = mass * (radius**2 / 2 + length**2 / 12)
+    return np.diag([transverse, transverse, mass * radius**2])
+
+
+def _rod(mass, radius, length):
+    """Inertia of a solid cylinder along z about its centre."""
+    transverse = mass * (radius**2 / 4 + length**2 / 12)
+    return np.diag([transverse, transverse, mass * radius**2 / 2])
+
+
+def node_inertias(section: SectionSpec) -> tuple[_Inertia, list[_Inertia], list[_Inertia]]:
+    """(the section's base plate, its D hinge nodes, its D disks (the last is the end plate)):
+    the parts each carries. The muscles' spread mass is lumped by the trapezoidal rule over the
+    2D half-links (a quarter of a link's share on each end of each half-link); end fittings on
+    the plates."""
+    D = section.disks
+    end, body = section.muscle_masses()
+    half = section.rest_length_m / (2 * D)
+    base, nodes, disks = _Inertia(), [_Inertia() for _ in range(D)], [_Inertia() for _ in range(D)]
+    for muscle, (x, y) in zip(section.muscles, section.offsets_m()):
+        pos = [x, y, 0.0]
+        piece = body / (4 * D)  # a quarter of one link's share
+        fitting = _rod(end, FITTING_RADIUS_M, FITTING_LENGTH_M)
+        base.add(end, pos, fitting)
+        base.add(piece, pos, _tube(piece, muscle.rest_outer_radius_m, half))
+        for k in range(D):
+            nodes[k].add(2 * piece, pos, _tube(2 * piece, muscle.rest_outer_radius_m, half))
+            disks[k].add(
+                piece if k == D - 1 else 2 * piece, pos, _tube(2 * piece, muscle.rest_outer_radius_m, half)
+            )
+        disks[D - 1].add(end, pos, fitting)
+    plate_radius = section.radius_m + max(m.rest_outer_radius_m for m in section.muscles)
+    disks[D - 1].add(section.plate_mass_kg, np.zeros(3), _rod(section.plate_mass_kg, plate_radius, 0.005))
+    for k in range(D - 1):
+        disks[k].add(section.disk_mass_kg, np.zeros(3), _rod(section.disk_mass_kg, plate_radius, 0.003))
+    return base, nodes, disks
+
+
+# ------------------------------------------------------------------------------ the builder
+
+
+def build_spec(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjSpec:
+    """The arm as an :class:`mujoco.MjSpec` (compile with ``spec.compile()`` after
+    ``efam_mujoco.plugin.load()``; :func:`build_model` does both).
+
+    ``muscles="affine"`` drives every muscle segment with MuJoCo's built-in affine actuator
+    instead (the muscle model linearised about its free length at half the pressure range; one
+    actuator per segment, so ``ctrl`` has one entry per segment): the benchmark's speed
+    reference, not a muscle model.
+    """
+    if muscles not in ("plugin", "affine"):
+        raise ValueError(f"muscles must be 'plugin' or 'affine', got {muscles!r}")
+    spec = _new_spec(arm)
+    base = _add_base(spec, arm)
+    parent, parent_parts = base, None
+    for j, section in enumerate(arm.sections, start=1):
+        parent, parent_parts = _add_section(spec, arm, j, section, parent, parent_parts)
+        _add_muscles(spec, arm, j, section, muscles == "affine", segmented=arm.mode == "segmented")
+        if arm.mode == "pcc":
+            _add_pcc_coupling(spec, arm, j, section)
+    _finish(spec, arm, parent)
+    return spec
+
+
+def _new_spec(arm: ArmSpec) -> mujoco.MjSpec:
+    spec = mujoco.MjSpec()
+    spec.modelname = arm.name
+    spec.compiler.degree = False  # every angle below is in radians
+    spec.option.timestep = arm.timestep_s
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.gravity = [0.0, 0.0, -9.81 if arm.gravity else 0.0]
+    spec.option.disableflags = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)  # the arm has no contacts
+    spec.visual.global_.offwidth, spec.visual.global_.offheight = 960, 720
+    spec.activate_plugin(plugin.PLUGIN_NAME)
+    world = spec.worldbody
+    world.add_light(pos=[0.4, -0.4, 1.2], dir=[-0.3, 0.3, -1.0], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+    total = arm.rest_length_m
+    axis = np.zeros(9)
+    mujoco.mju_quat2Mat(axis, np.array(ORIENTATIONS[arm.orientation]))
+    centre = axis.reshape(3, 3)[:, 2] * 0.75 * total
+    world.add_camera(
+        name="side",
+        pos=(centre + [0.0, -4.0 * total, 0.0]).tolist(),
+        xyaxes=[1, 0, 0, 0, 0, 1],
+        mode=mujoco.mjtCamLight.mjCAMLIGHT_FIXED,
+    )
+    return spec
+
+
+def _add_base(spec, arm):
+    base = spec.worldbody.add_body(name="base", quat=list(ORIENTATIONS[arm.orientation]))
+    _add_plate_geom(base, arm.sections[0], 0.006, (0.5, 0.5, 0.5, 1))
+    return base
+
+
+def _set_inertia(body, acc: _Inertia):
+    if acc.mass <= 0:
+        raise ValueError(f"body {body.name}: no mass (set end_mass_kg/body_mass_kg above zero)")
+    com, tensor = acc.com_and_tensor()
+    body.explicitinertial = True
+    body.mass = acc.mass
+    body.ipos = com.tolist()
+    body.fullinertia = [tensor[0, 0], tensor[1, 1], tensor[2, 2], tensor[0, 1], tensor[0, 2], tensor[1, 2]]
+
+
+def _add_section(spec, arm: ArmSpec, j: int, section: SectionSpec, parent, parent_parts):
+    """Links k = 1..D of section j on ``parent`` (the previous end plate with its parts, or the
+    base); returns the section's end plate and its parts."""
+    D = section.disks
+    half = section.rest_length_m / (2 * D)
+    base_parts, nodes, disks = node_inertias(section)
+    if parent_parts is not None:  # this section's base-end parts ride on the previous end plate
+        _set_inertia(parent, _Inertia(parent_parts + base_parts.parts))
+    # damping of a half-link's extension and of a link's bend, from the material viscosities
+    slide_damping = arm.axial_viscosity_N_s / half
+    hinge_damping = arm.bend_viscosity_N_m2_s / (2 * half)
+    for k in range(1, D + 1):
+        node = parent.add_body(name=f"s{j}h{k}", pos=[0.0, 0.0, half])
+        _set_inertia(node, nodes[k - 1])
+        _slide(node, f"s{j}d{k}_ext_a", half, slide_damping)
+        axes = (("x", [1, 0, 0]), ("y", [0, 1, 0]))
+        for suffix, axis in axes if k % 2 else axes[::-1]:
+            node.add_joint(
+                name=f"s{j}d{k}_bend_{suffix}",
+                type=mujoco.mjtJoint.mjJNT_HINGE,
+                axis=axis,
+                damping=hinge_damping,
+            )
+        disk = node.add_body(name=f"s{j}d{k}", pos=[0.0, 0.0, half])
+        _slide(disk, f"s{j}d{k}_ext_b", half, slide_damping)
+        _set_inertia(disk, disks[k - 1])
+        end = k == D
+        _add_plate_geom(
+            disk, section, 0.004 if end else 0.0015, (0.6, 0.6, 0.65, 1) if end else (0.75, 0.75, 0.75, 0.6)
+        )
+        parent = disk
+    return parent, list(disks[D - 1].parts)
+
+
+def _slide(body, name, half, damping):
+    body.add_joint(
+        name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], ref=half, damping=damping
+    )  # fmt: skip
+
+
+def segment_coefficients(section: SectionSpec, j: int, k: int, i: int) -> dict[str, float]:
+    """Joint coefficients of muscle i's two segments in link k: each half-link's slide plus half
+    the link's bend at the muscle's offset (x, y): l = ext - (x theta_y - y theta_x) / 2."""
+    x, y = section.offsets_m()[i]
+    return {f"s{j}d{k}_bend_x": y / 2, f"s{j}d{k}_bend_y": -x / 2}
+
+
+def _add_muscles(spec, arm: ArmSpec, j: int, section: SectionSpec, affine: bool, segmented: bool = True):
+    D = section.disks
+    for i, muscle in enumerate(section.muscles):
+        name = f"s{j}m{i + 1}"
+        whole = spec.add_tendon(name=name, rgba=list(_MUSCLE_RGBA[i % 4]))
+        segments = []
+        for k in range(1, D + 1):
+            bends = segment_coefficients(section, j, k, i)
+            for ext in ("a", "b"):
+                segments.append((f"{name}_k{k}{ext}", {f"s{j}d{k}_ext_{ext}": 1.0, **bends}))
+        totals: dict[str, float] = {}
+        for _, coefs in segments:
+            for joint, c in coefs.items():
+                totals[joint] = totals.get(joint, 0.0) + c
+        for joint, c in totals.items():
+            whole.wrap_joint(joint, c)
+        if not segmented:  # PCC: one force along the whole muscle
+            actuator = _add_actuator(spec, arm, name, name)
+            if affine:
+                _make_affine(actuator, muscle, arm.max_pressure_Pa / 2)
+            else:
+                actuator.plugin = _shared_instance(spec, muscle, 1)
+            continue
+        for seg_name, coefs in segments:
+            tendon = spec.add_tendon(name=seg_name)
+            for joint, c in coefs.items():
+                tendon.wrap_joint(joint, c)
+        if affine:
+            for seg_name, _ in segments:
+                actuator = _add_actuator(spec, arm, seg_name, seg_name)
+                _make_affine(actuator, muscle, arm.max_pressure_Pa / 2, len(segments))
+        else:
+            actuator = _add_actuator(spec, arm, name, name)
+            actuator.plugin = _shared_instance(spec, muscle, len(segments))
+
+
+#: PCC mode: coupling springs this many times stiffer than the muscles (at rest, zero pressure)
+PCC_STIFFNESS_RATIO = 10.0
+#: PCC mode: relaxation time of the coupling springs' dampers (their damping = stiffness x this)
+PCC_RELAXATION_S = 0.004
+
+
+def _add_pcc_coupling(spec, arm: ArmSpec, j: int, section: SectionSpec):
+    """PCC: every half-link of the section extends like the next and every link bends like the
+    next, held by conservative springs on the differences (fixed tendons with stiffness), a
+    penalty (no constraint: nothing numerical decides the rest pose). The springs are
+    ``PCC_STIFFNESS_RATIO`` times stiffer than the muscles they couple, and damped with the
+    time constant ``PCC_RELAXATION_S`` (their damping counts in the damping work)."""
+    D = section.disks
+    k_muscles = sum(-(m.push(0.0, m.rest_length_m * 1.000001) - m.push(0.0, m.rest_length_m * 0.999999))
+                    / (2e-6 * m.rest_length_m) for m in section.muscles)  # fmt: skip
+    axial = PCC_STIFFNESS_RATIO * 2 * D * k_muscles  # a half-link's muscles
+    offsets = section.offsets_m()
+    bend = {
+        "x": PCC_STIFFNESS_RATIO * D * k_muscles / len(section.muscles) * float(np.sum(offsets[:, 1] ** 2)),
+        "y": PCC_STIFFNESS_RATIO * D * k_muscles / len(section.muscles) * float(np.sum(offsets[:, 0] ** 2)),
+    }
+    extensions = [f"s{j}d{k}_ext_{e}" for k in range(1, D + 1) for e in ("a", "b")]
+    pairs = [(a, b, axial) for a, b in zip(extensions[:-1], extensions[1:])]
+    for axis in ("x", "y"):
+        pairs += [(f"s{j}d{k}_bend_{axis}", f"s{j}d{k + 1}_bend_{axis}", bend[axis]) for k in range(1, D)]
+    for a, b, stiffness in pairs:
+        tendon = spec.add_tendon(
+            name=f"pcc_{a}",
+            stiffness=stiffness,
+            damping=stiffness * PCC_RELAXATION_S,
+            springlength=[0.0, 0.0],
+        )
+        tendon.wrap_joint(a, 1.0)
+        tendon.wrap_joint(b, -1.0)
+
+
+def _add_actuator(spec, arm, name, tendon):
+    actuator = spec.add_actuator(
+        name=name, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=tendon,
+        ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE, ctrlrange=[0.0, arm.max_pressure_Pa],
+    )  # fmt: skip
+    if arm.pressure_tau_s > 0:
+        actuator.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+        actuator.dynprm[0] = arm.pressure_tau_s
+        actuator.actdim = 1
+    return actuator
+
+
+def _shared_instance(spec: mujoco.MjSpec, muscle: Muscle, segments: int):
+    """The plugin instance for ``muscle``'s constants, made once per distinct muscle: an instance
+    evaluates all its actuators (and their segments) as one vectorised batch, and MuJoCo visits
+    every instance each step whatever it computes."""
+    config = plugin.plugin_config(muscle, segments=segments)
+    for existing in spec.plugins:
+        if existing.plugin_name == plugin.PLUGIN_NAME and dict(existing.config) == config:
+            return existing
+    instance = spec.add_plugin(
+        name=f"muscle{len(spec.plugins) + 1}", plugin_name=plugin.PLUGIN_NAME, active=True
+    )
+    instance.config = config
+    return instance
+
+
+def _make_affine(actuator, muscle: Muscle, pressure_Pa: float, segments: int = 1):
+    """force = gain p + b0 + b1 l: the tangent of push(P, N l) at (pressure_Pa, free length / N)."""
+    length = muscle.free_length(pressure_Pa)
+    dp, dl = 1e-3 * pressure_Pa, 1e-6
+    gain = (muscle.push(pressure_Pa + dp, length) - muscle.push(pressure_Pa - dp, length)) / (2 * dp)
+    slope = (muscle.push(pressure_Pa, length + dl) - muscle.push(pressure_Pa, length - dl)) / (2 * dl)
+    actuator.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+    actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    actuator.gainprm[0] = gain
+    actuator.biasprm[0] = -gain * pressure_Pa - slope * length
+    actuator.biasprm[1] = slope * segments
+
+
+def _add_plate_geom(body, section, thickness, rgba):
+    radius = section.radius_m + max(m.rest_outer_radius_m for m in section.muscles)
+    body.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[radius, thickness / 2, 0], rgba=list(rgba),
+        contype=0, conaffinity=0, group=1, mass=0,
+    )  # fmt: skip
+
+
+def _finish(spec, arm: ArmSpec, tip_body):
+    tip_body.add_site(name="tip", size=[0.006, 0, 0], rgba=[0.9, 0.1, 0.1, 1])
+    if arm.payload_kg > 0:
+        radius = (3 * arm.payload_kg / (4 * math.pi * 7800.0)) ** (1 / 3)  # a steel ball
+        # the payload's mass acts at the tip (a point load, as in the continuum reference); the
+        # ball is drawn beyond the tip plate
+        payload = tip_body.add_body(name="payload", pos=[0, 0, 0])
+        payload.explicitinertial = True
+        payload.mass = arm.payload_kg
+        payload.ipos = [0.0, 0.0, 0.0]
+        payload.inertia = [1e-9 * arm.payload_kg] * 3
+        payload.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0], pos=[0, 0, radius + 0.005], mass=0,
+            rgba=[0.3, 0.3, 0.3, 1], contype=0, conaffinity=0,
+        )  # fmt: skip
+    if arm.hold_tip:
+        spec.add_equality(
+            type=mujoco.mjtEq.mjEQ_WELD, name1=tip_body.name, name2="base", objtype=mujoco.mjtObj.mjOBJ_BODY,
+            name="hold_tip", data=[0.0] * 10 + [1.0, 0.0], solref=[0.004, 1.0],
+            solimp=[0.9999, 0.9999, 0.001, 0.5, 2.0],  # a test fixture: as rigid as MuJoCo allows
+        )  # fmt: skip
+    _add_sensors(spec, arm)
+
+
+def _add_sensors(spec, arm):
+    site = mujoco.mjtObj.mjOBJ_SITE
+    spec.add_sensor(name="tip_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=site, objname="tip")
+    spec.add_sensor(name="tip_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=site, objname="tip")
+    names = [n for section in muscle_names(arm) for n in section]
+    for name in names:
+        spec.add_sensor(
+            name=f"len_{name}", type=mujoco.mjtSensor.mjSENS_TENDONPOS, objtype=mujoco.mjtObj.mjOBJ_TENDON, objname=name
+        )  # fmt: skip
+    for name in names:
+        if spec.actuator(name) is None:
+            continue
+        spec.add_sensor(
+            name=f"force_{name}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=name,
+        )  # fmt: skip
+    for instance in spec.plugins:
+        if instance.plugin_name == plugin.PLUGIN_NAME:
+            sensor = spec.add_sensor(name=f"pressures_{instance.name}", type=mujoco.mjtSensor.mjSENS_PLUGIN)
+            sensor.plugin = instance
+
+
+def build_model(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjModel:
+    """Compile the arm (loads the plugin first)."""
+    plugin.load()
+    return build_spec(arm, muscles).compile()
+
+
+def arm_xml(arm: ArmSpec) -> str:
+    """The arm's MJCF."""
+    plugin.load()
+    spec = build_spec(arm)
+    spec.compile()  # to_xml needs a compiled spec
+    return spec.to_xml()
+
+
+MODELS = {"arm_1x3": arm_1x3, "arm_3x3": arm_3x3}
+MODELS_DIR = Path(__file__).resolve().parent.parent.parent / "models"
+
+
+def write_models(directory: Path = MODELS_DIR) -> list[Path]:
+    """Write models/arm_*.xml from the builder (atomically)."""
+    return [
+        write_text_atomic(Path(directory) / f"{name}.xml", arm_xml(make())) for name, make in MODELS.items()
+    ]
+
+
+# ------------------------------------------------------------------------ reading a model
+
+
+def muscle_names(arm: ArmSpec) -> list[list[str]]:
+    """Per section, the muscles' names (their actuator, whole-muscle tendon and sensor names)."""
+    return [[f"s{j}m{i + 1}" for i in range(len(s.muscles))] for j, s in enumerate(arm.sections, start=1)]
+
+
+def muscle_pressures(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """Pressure each muscle acts with, Pa: the activation (filtered pressure) of an actuator with
+    pressure dynamics, else its ctrl (clamped to ctrlrange, as MuJoCo applies it)."""
+    out = np.empty(model.nu)
+    for a in range(model.nu):
+        adr = model.actuator_actadr[a]
+        if adr >= 0:
+            out[a] = data.act[adr]
+        else:
+            lo, hi = model.actuator_ctrlrange[a]
+            out[a] = np.clip(data.ctrl[a], lo, hi) if model.actuator_ctrllimited[a] else data.ctrl[a]
+    return out
+
+
+def base_frame_position(model: mujoco.MjModel, data: mujoco.MjData, world_pos) -> np.ndarray:
+    """A world position expressed in the arm's base frame (z along the first section)."""
+    b = model.body("base").id
+    return data.xmat[b].reshape(3, 3).T @ (np.asarray(world_pos) - data.xpos[b])
+
+
+def tip_in_base(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """Tip site position in the arm's base frame."""
+    return base_frame_position(model, data, data.site("tip").xpos)
+
+
+def gravity_in_base(arm: ArmSpec) -> np.ndarray:
+    """Gravity (m/s^2) expressed in the base frame."""
+    if not arm.gravity:
+        return np.zeros(3)
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, np.asarray(ORIENTATIONS[arm.orientation]))
+    return rotation.reshape(3, 3).T @ np.array([0.0, 0.0, -9.81])
+
+
+def settle(
+    model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, t_max_s: float = 6.0, vel_tol: float = 1e-6
+) -> bool:
+    """Hold the pressures and step until the arm is still (or ``t_max_s`` of simulated time);
+    returns whether it settled. Raises if the state stops being finite."""
+    data.ctrl[:] = np.ravel(pressures_Pa)
+    while data.time < t_max_s:
+        for _ in range(100):
+            mujoco.mj_step(model, data)
+        if not np.all(np.isfinite(data.qpos)):
+            raise FloatingPointError(f"arm state not finite at t = {data.time:.3f} s")
+        if np.abs(data.qvel).max() < vel_tol:
+            return True
+    return False
+
+
+def segment_tendons(model: mujoco.MjModel, name: str) -> np.ndarray:
+    """Tendon ids of muscle ``name``'s segments (the tendons after its whole-muscle tendon)."""
+    whole = model.tendon(name).id
+    count = sum(1 for t in range(whole + 1, model.ntendon) if model.tendon(t).name.startswith(name + "_k"))
+    return np.arange(whole + 1, whole + 1 + count)
+
+
+def muscle_segment_lengths(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
+    """Current length of each segment of muscle ``name``, m."""
+    return data.ten_length[segment_tendons(model, name)].copy()
+
+
+__all__ = [
+    "MODELS",
+    "MODELS_DIR",
+    "arm_xml",
+    "base_frame_position",
+    "build_model",
+    "build_spec",
+    "gravity_in_base",
+    "muscle_names",
+    "muscle_pressures",
+    "muscle_segment_lengths",
+    "node_inertias",
+    "segment_coefficients",
+    "segment_tendons",
+    "settle",
+    "tip_in_base",
+    "write_models",
+]
+
+
+def generalized_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """Net generalized force at zero velocity: passive (the muscle segments' extra forces) +
+    actuators (whole muscles) - gravity. Calls mj_forward."""
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(model, data)
+    return data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
+
+
+def static_equilibrium(
+    model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, settle_s: float = 1.0, tol_N: float = 1e-9
+) -> bool:
+    """Put the arm at rest under constant pressures: a short settle to reach the branch the
+    arm falls into, then Newton on qpos (finite-difference stiffness) until the net generalized
+    force is below ``tol_N``. The pressure states are set to the pressures. Returns whether it
+    converged (the state is left at the best point found)."""
+    settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0)
+    data.ctrl[:] = np.ravel(pressures_Pa)
+    lagged = np.flatnonzero(model.actuator_actadr >= 0)
+    data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]
+    q = data.qpos.copy()
+    r = generalized_force(model, data)
+    h = 1e-7
+    for _ in range(50):
+        if np.max(np.abs(r)) < tol_N:
+            return True
+        K = np.empty((model.nv, model.nv))
+        for i in range(model.nv):
+            data.qpos[:] = q
+            data.qpos[i] += h
+            K[:, i] = (generalized_force(model, data) - r) / h
+        step = np.linalg.lstsq(K, -r, rcond=None)[0]
+        for scale in (1.0, 0.5, 0.25, 0.1, 0.03, 0.01):
+            data.qpos[:] = q + scale * step
+            trial = generalized_force(model, data)
+            if np.linalg.norm(trial) < np.linalg.norm(r):
+                q, r = data.qpos.copy(), trial
+                break
+        else:
+            break
+    data.qpos[:] = q
+    generalized_force(model, data)
+    return bool(np.max(np.abs(r)) < tol_N)

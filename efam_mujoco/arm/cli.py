@@ -1,0 +1,156 @@
+"""``efam arm``: build an arm, write its MJCF, or put it at rest under pressures and compare the
+MuJoCo tip with the continuum reference."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ..files import write_json_atomic, write_text_atomic
+from ..musclefile import load_muscle
+from .builder import MODELS_DIR, arm_xml, build_model, static_equilibrium, tip_in_base, write_models
+from .continuum import solve_arm_spec
+from .spec import DEFAULT_DISKS, ORIENTATIONS, ArmSpec, SectionSpec
+
+
+def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force_N=(0.0, 0.0, 0.0)) -> dict:
+    """Tip position at rest under constant pressures, in the base frame: the MuJoCo arm
+    (:func:`~efam_mujoco.arm.builder.static_equilibrium`) and the continuum reference with the
+    arm's own weight and payload (``tip_force_N``: an extra load on the continuum only)."""
+    model = build_model(arm)
+    data = mujoco.MjData(model)
+    settled = static_equilibrium(model, data, [p for section in pressures_Pa for p in section])
+    simulated = tip_in_base(model, data)
+    state = solve_arm_spec(arm, [list(p) for p in pressures_Pa], tip_force_N=tip_force_N)
+    predicted = state.tip_position_m
+    return {
+        "settled": bool(settled),
+        "tip_mujoco_m": simulated.tolist(),
+        "tip_continuum_m": np.asarray(predicted).tolist(),
+        "tip_statics_m": np.asarray(predicted).tolist(),  # the former name of tip_continuum_m
+        "difference_pct_of_rest_length": float(
+            100 * np.linalg.norm(simulated - predicted) / arm.rest_length_m
+        ),
+        "section_bend_deg": [float(np.degrees(sec.bend_angle_rad)) for sec in state.sections],
+    }
+
+
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--write-models", action="store_true", help="regenerate models/arm_*.xml from the builder"
+    )
+    parser.add_argument("--models-dir", type=Path, default=MODELS_DIR, help="where --write-models writes")
+    parser.add_argument(
+        "--muscle", nargs="+", default=["FAM1"],
+        help="preset or muscle file per muscle (one value: the same muscle everywhere)",
+    )  # fmt: skip
+    parser.add_argument("--stress", help="stress law (default: each file's default law)")
+    parser.add_argument("--sections", type=int, default=1, help="number of sections (default 1)")
+    parser.add_argument("--muscles-per-section", type=int, default=3, help="muscles per section (>= 3)")
+    parser.add_argument(
+        "--radius-mm", type=float, default=None,
+        help="muscle placement radius, mm (default: from the muscles' diameters and count)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--disks", type=int, default=DEFAULT_DISKS, help=f"spacer disks per section (default {DEFAULT_DISKS})"
+    )
+    parser.add_argument("--orientation", choices=sorted(ORIENTATIONS), default="upright")
+    parser.add_argument("--payload-kg", type=float, default=0.0, help="tip payload, kg")
+    parser.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    parser.add_argument(
+        "--pressure-lag-s", type=float, default=0.05, help="valve/tube time constant, s (0: none)"
+    )
+    parser.add_argument(
+        "--mode", choices=("segmented", "pcc"), default="segmented", help="arm model (default segmented)"
+    )
+    parser.add_argument("--xml", type=Path, help="write the arm's MJCF to this file")
+    parser.add_argument(
+        "--pressures-kPa", type=float, nargs="+",
+        help="one pressure per muscle, base section first: print the tip at rest, MuJoCo vs continuum reference",
+    )  # fmt: skip
+    parser.add_argument("--json", type=Path, help="write the equilibrium as JSON to this file")
+
+
+def arm_from_args(args) -> ArmSpec:
+    """The :class:`ArmSpec` the command line describes."""
+    count = args.sections * args.muscles_per_section
+    if args.sections < 1 or args.muscles_per_section < 3:
+        raise ValueError("--sections must be >= 1 and --muscles-per-section >= 3")
+    if len(args.muscle) not in (1, count):
+        raise ValueError(f"--muscle: give 1 muscle or one per muscle ({count}), got {len(args.muscle)}")
+    if args.radius_mm is not None and not args.radius_mm > 0:
+        raise ValueError(f"--radius-mm must be positive, got {args.radius_mm}")
+    names = args.muscle * count if len(args.muscle) == 1 else args.muscle
+    loaded = {name: load_muscle(name, args.stress) for name in set(names)}
+    m = args.muscles_per_section
+    sections = tuple(
+        SectionSpec(
+            muscles=tuple(loaded[n] for n in names[j * m : (j + 1) * m]),
+            radius_m=None if args.radius_mm is None else args.radius_mm / 1e3,
+            disks=args.disks,
+        )
+        for j in range(args.sections)
+    )
+    return ArmSpec(
+        sections=sections,
+        orientation=args.orientation,
+        pressure_tau_s=args.pressure_lag_s,
+        payload_kg=args.payload_kg,
+        gravity=not args.no_gravity,
+        mode=args.mode,
+        name=f"arm_{args.sections}x{m}",
+    )
+
+
+def _run(args) -> int:
+    if args.write_models:
+        for path in write_models(args.models_dir):
+            print(path)
+        return 0
+    spec = arm_from_args(args)
+    if args.xml:
+        write_text_atomic(args.xml, arm_xml(spec))
+        print(f"wrote {args.xml}")
+    if args.pressures_kPa:
+        count = sum(len(s.muscles) for s in spec.sections)
+        pressures = np.asarray(args.pressures_kPa) * 1e3
+        if pressures.size != count or not np.all(np.isfinite(pressures)) or np.any(pressures < 0):
+            raise ValueError(f"--pressures-kPa: need {count} finite pressures >= 0, got {args.pressures_kPa}")
+        sizes = np.cumsum([len(s.muscles) for s in spec.sections])[:-1]
+        result = equilibrium(spec, np.split(pressures, sizes))
+        print(
+            f"tip at rest, base frame (mm): MuJoCo {np.round(1e3 * np.array(result['tip_mujoco_m']), 2)}, "
+            f"continuum reference {np.round(1e3 * np.array(result['tip_continuum_m']), 2)}; "
+            f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
+        )
+        if not result["settled"]:
+            print("warning: the MuJoCo arm's static equilibrium did not converge", file=sys.stderr)
+        if args.json:
+            write_json_atomic(args.json, result)
+    if not (args.xml or args.pressures_kPa):
+        print("nothing to do: pass --xml FILE, --pressures-kPa ..., or --write-models", file=sys.stderr)
+        return 2
+    return 0
+
+
+def register_cli(subparsers) -> None:
+    """``efam arm`` (for efam_mujoco.cli.COMMAND_MODULES)."""
+    parser = subparsers.add_parser(
+        "arm",
+        help="build a continuum arm; its tip at rest under pressures, MuJoCo vs continuum reference",
+        description=__doc__.splitlines()[0],
+    )
+    _add_arguments(parser)
+    parser.set_defaults(run=_run)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m efam_mujoco.arm``."""
+    parser = argparse.ArgumentParser(prog="python -m efam_mujoco.arm", description=__doc__.splitlines()[0])
+    _add_arguments(parser)
+    return _run(parser.parse_args(argv))
