@@ -1,10 +1,10 @@
 """A bundle of the sized muscle: one section of M muscles in parallel, what it does, from the
 continuum reference and verified in MuJoCo (``efam size --bundle M``).
 
-This is the only module of ``efam size`` that knows the arm API. It uses today's public API
-(``arm.SectionSpec``, ``arm.ArmSpec``, ``arm.build_model``, ``arm.settle``, ``arm.tip_in_base``,
-``arm.point_masses``, ``arm.gravity_in_base``; ``statics.solve_arm``, the constant-curvature
-reference); switch :func:`_reference` to a new continuum reference in one place.
+This is the only module of ``efam size`` that knows the arm API (``arm.SectionSpec``,
+``arm.ArmSpec``, ``arm.build_model``, ``arm.settle``, ``arm.tip_in_base``, and
+``arm.continuum.solve_arm_spec``, the Kirchhoff-rod continuum reference with the section's own
+weight and the payload).
 
 Quantities (all at the request's pressure P; gravity off unless stated):
 
@@ -33,7 +33,8 @@ from scipy.optimize import brentq
 
 from .. import arm
 from ..muscle import Muscle
-from ..statics import StaticsError, solve_arm
+from ..arm.continuum import solve_arm_spec
+from ..statics import StaticsError
 from .request import Request
 from .verify import Pair
 
@@ -86,12 +87,7 @@ def section_for(muscle: Muscle, count: int) -> arm.SectionSpec:
 
 def _reference(spec: arm.ArmSpec, pressures) -> tuple[np.ndarray, float, float]:
     """Continuum reference: (tip position in the base frame, bend angle in rad, arc length)."""
-    state = solve_arm(
-        spec.sections,
-        [pressures],
-        gravity_m_s2=arm.gravity_in_base(spec),
-        point_masses=arm.point_masses(spec),
-    )
+    state = solve_arm_spec(spec, [pressures])
     section = state.sections[0]
     return np.asarray(state.tip_position_m), section.bend_angle_rad, section.arc_length_m
 
@@ -142,7 +138,7 @@ def bundle_report(muscle: Muscle, request: Request) -> BundleReport:
         ref_bend = reference_bend(check)
     except (StaticsError, ValueError) as err:
         full = check = ref_bend = math.nan
-        notes.append(f"bend: no constant-curvature equilibrium ({err})")
+        notes.append(f"bend: no continuum equilibrium ({err})")
     if math.isfinite(check):
         _, sim_bend, _, _, ok = _simulate(free, [check] + [P] * (M - 1))
         settled &= ok
@@ -156,7 +152,7 @@ def bundle_report(muscle: Muscle, request: Request) -> BundleReport:
         ref_deflection = float(np.linalg.norm(_reference(loaded, equal)[0] - straight))
     except StaticsError as err:
         ref_deflection = math.nan
-        notes.append(f"payload: no constant-curvature equilibrium ({err})")
+        notes.append(f"payload: no continuum equilibrium ({err})")
     try:
         sim_loaded, _, _, _, ok = _simulate(loaded, equal)
         settled &= ok

@@ -85,7 +85,7 @@ def summary(result: SizingResult, top: int = 3) -> str:
         b = result.bundle
         lines.append(
             f"\nbundle: {b.muscles} x the best muscle at radius {_mm(b.radius_m)} mm, {b.pressure_Pa / 1e3:g} kPa "
-            f"(constant-curvature reference beside MuJoCo)"
+            f"(continuum reference beside MuJoCo)"
         )
         lines.append(
             f"  tip force, held at rest    {b.tip_force_N.analytic:10.1f} N   MuJoCo {b.tip_force_N.mujoco:10.1f} N"
