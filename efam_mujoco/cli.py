@@ -13,6 +13,7 @@ COMMAND_MODULES = (
     "efam_mujoco.arm",
     "efam_mujoco.calibrate",
     "efam_mujoco.diagnose",
+    "efam_mujoco.armdiag",
 )
 
 
