@@ -187,6 +187,9 @@ def main(argv=None) -> int:
         rows.append(row)
         if example is None and truth == "weak_muscle":
             example = d
+        write_json_atomic(
+            args.out, {"partial": True, "rows": rows, "seed": args.seed}
+        )  # survives an interrupted run
         print(
             f"{arm_name} {truth:16s} {protocol:11s} {row['rate_Hz']:5.0f} Hz -> {row['answer']:16s} "
             f"p {row['probability']:.2f}{' AMB' if row['ambiguous'] else ''} muscle {row['muscle']} (true {row['truth_muscle']}); "

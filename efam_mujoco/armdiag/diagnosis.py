@@ -198,7 +198,7 @@ def diagnose_arm(
             "name": name, "probability": prob[name], "heldout_rms_m": math.sqrt(sse_held[name] / n_held),
             "rms_m": _rms((f.tip - measured)[train]), "delta_score": score[first] - score[name],
             "muscle": rec.muscles[fits[name][1]] if name != "none" and fits[name][1] is not None else None,
-            "parameters": {} if name == "none" else dict(f.values),
+            "parameters": {} if name == "none" else _own(name, f.values),
         })  # fmt: skip
     found = []
     after = base
@@ -207,7 +207,8 @@ def diagnose_arm(
         after = f
         e = get(first)
         found.append({
-            "name": first, "parameters": dict(f.values), "muscle": rec.muscles[muscle] if muscle is not None else None,
+            "name": first, "parameters": _own(first, f.values), "refit_parameters": _shared(first, f.values),
+            "muscle": rec.muscles[muscle] if muscle is not None else None,
             "heldout_rms_before_m": heldout_none, "heldout_rms_after_m": math.sqrt(sse_held[first] / n_held),
             "equation": e.equation, "summary": e.summary, "delta_bic": score["none"] - score[first],
             "identifiable": not ambiguous, "probability": prob[first], "switch_on": e.switch_on,
@@ -261,6 +262,17 @@ def diagnose_arm(
     )
 
 
+def _own(name: str, values: dict) -> dict:
+    """The effect's own parameters of a joint fit."""
+    return {p.key: float(values[p.key]) for p in get(name).params}
+
+
+def _shared(name: str, values: dict) -> dict:
+    """The re-fit's parameters of a joint fit (fitted together with the effect)."""
+    own = {p.key for p in get(name).params}
+    return {k: float(v) for k, v in values.items() if k not in own}
+
+
 def _fit_effect(effect, replayer, base: FitResult, nominal: Knobs, measured, train, M, directions):
     """(fit, muscle index or None) of one library effect, jointly with the re-fit's parameters."""
 
@@ -278,7 +290,8 @@ def _fit_effect(effect, replayer, base: FitResult, nominal: Knobs, measured, tra
     # directions for locating: the tip's change when one muscle's pressure is scaled / delayed
     kind = {"weak_muscle": "gain", "pressure_lag": "lag"}.get(effect.name)
     if kind:
-        probe = {**base.values, effect.params[0].key: effect.params[0].grid[len(effect.params[0].grid) // 2]}
+        probe = {**base.values, **{p.key: p.start if p.start is not None else p.lo for p in effect.params}}
+        probe[effect.params[0].key] = effect.params[0].grid[len(effect.params[0].grid) // 2]
         tips = replayer.tips([maker(m)(probe) for m in range(M)])
         for m in range(M):
             directions[f"{replayer.muscles[m]}:{kind}"] = tips[m] - base.tip

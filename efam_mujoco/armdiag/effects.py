@@ -72,9 +72,10 @@ class ArmEffect:
                 lag[muscle] = max(lag[muscle], v["tau_s"])
             return with_values(base, lag_s=lag)
         if self.name == "weak_muscle":
-            gain = np.array(base.gain)
+            gain, offset = np.array(base.gain), np.array(base.offset_Pa)
             gain[muscle] = v["pressure_factor"]
-            return with_values(base, gain=gain)
+            offset[muscle] += v["drop_Pa"]
+            return with_values(base, gain=gain, offset_Pa=offset)
         if self.name == "muscle_friction":
             return with_values(base, friction_N=v["f0_N"])
         if self.name == "cross_talk":
@@ -112,7 +113,8 @@ LIBRARY: tuple[ArmEffect, ...] = (
     ),
     ArmEffect(
         "weak_muscle", "one muscle acts with a lower pressure than commanded (a leak or a failing bladder)",
-        "P_eff = k P_cmd on that muscle", (Param("pressure_factor", 0.2, 1.0, start=0.9, grid=(0.4, 0.7, 0.9)),),
+        "P_eff = k P_cmd - d on that muscle",
+        (Param("pressure_factor", 0.2, 1.0, start=0.9, grid=(0.4, 0.7, 0.9)), Param("drop_Pa", 0.0, 80e3, start=0.0)),
         per_muscle=True, switch_on="command map (custom numeric efam_ctrl_gain)",
     ),
     ArmEffect(

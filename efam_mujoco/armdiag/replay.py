@@ -138,21 +138,17 @@ class Replayer:
             tip_body = next(b for b in spec.bodies if "tip" in [s.name for s in b.sites])
             tip = next(s for s in tip_body.sites if s.name == "tip")
             r = 0.015
+            # the mass on the geom (not an explicit <inertial>) so that it survives the MJCF round trip
             load = tip_body.add_body(name="payload", pos=list(tip.pos))
-            load.explicitinertial = True
-            load.mass = k.payload_kg
-            load.inertia = [0.4 * k.payload_kg * r * r] * 3
             load.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0], contype=0, conaffinity=0,
-                          group=2, mass=0, density=0)  # fmt: skip
+                          group=2, mass=k.payload_kg)  # fmt: skip
         if k.mount_stiffness_N_m_per_rad > 0:
             for name, axis in (("mount_x", [1, 0, 0]), ("mount_y", [0, 1, 0])):
                 base.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
                                stiffness=k.mount_stiffness_N_m_per_rad,
                                damping=k.mount_damping_N_m_s_per_rad, armature=1e-4)  # fmt: skip
-            if base.mass == 0:
-                base.explicitinertial = True
-                base.mass = 1e-3
-                base.inertia = [1e-6] * 3
+            base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.005, 0, 0], contype=0, conaffinity=0,
+                          group=2, mass=1e-3)  # fmt: skip
         if k.friction_N > 0:
             for instance in spec.plugins:
                 if instance.plugin_name == plugin.PLUGIN_NAME:

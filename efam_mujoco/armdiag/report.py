@@ -43,6 +43,9 @@ def text(d: ArmDiagnosis) -> str:
         out.append(f"Found: {e['name']}{muscle} -- {e['summary']} (p = {e['probability']:.2f})")
         out.append(f"  equation: {e['equation']}")
         out.append("  parameters: " + ", ".join(f"{k} = {val:.4g}" for k, val in e["parameters"].items()))
+        out.append(
+            "  re-fit with it: " + ", ".join(f"{k} {val:.4g}" for k, val in e["refit_parameters"].items())
+        )
         out.append(f"  held-out tip RMS {_mm(e['heldout_rms_before_m'])} -> {_mm(e['heldout_rms_after_m'])}")
         out.append(f"  switched on in: {e['switch_on']}")
     if v["ambiguous"]:

@@ -2,8 +2,7 @@
 
 The concealed effects are written here independently of the library (:mod:`.effects`,
 :mod:`.replay`) and in other functional forms: a payload with an off-axis centre of mass added to
-the tip body's inertia, a tilt as a rotated gravity and a rotated marker frame, quadratic air drag
-or hinge-only damping, a second-order lag with a transport delay, a leak with an offset and a
+the tip body's inertia, a tilt as a rotated gravity and a rotated marker frame, hinge-only damping, damping along the muscles (tendon damping) or a viscous medium, a second-order lag with a transport delay, a leak with an offset and a
 proportional loss, MuJoCo's dry joint friction, a one-way low-passed cross-talk between two
 muscles, a ball-jointed springy mount. Protocols: steps, ramps, sinusoids, random sequences and a
 closed-loop tip controller; marker noise, dropouts in bursts, 30-200 Hz sampling.
@@ -128,6 +127,8 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
     elif truth.name == "damping" and tp["form"] == "hinge":
         hinge = model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE
         model.dof_damping[model.jnt_dofadr[hinge]] *= tp["factor"]
+    elif truth.name == "damping" and tp["form"] == "tendon":  # viscous bladders: damping along each muscle
+        model.tendon_damping[:] = tp["c_N_s_per_m"]
     elif truth.name == "muscle_friction":
         model.dof_frictionloss[:] = np.where(
             model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_SLIDE, tp["slide_N"], tp["hinge_N_m"]
@@ -156,7 +157,7 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
     cmd_steps = np.empty((n_run, M))
     for k in range(-n_settle, n_run):
         s = sample_of_step[max(k, 0)]
-        if closed and k >= 0 and s >= 0 and (k == 0 or sample_of_step[k - 1] != s):
+        if closed and k > 0 and s >= 1 and sample_of_step[k - 1] != s:
             # the controller reads the (noisy) marker at its sample and commands the next pressures
             i_target = np.searchsorted(targets_t, t_samples[s])
             err = target_xy[i_target] - (measured_tip[:2] if measured_tip is not None else 0)
@@ -187,13 +188,13 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
         data.ctrl[:] = np.clip(p, 0, hi_P)
         if k == -n_settle:
             data.act[:] = data.ctrl
-        if truth.name == "damping" and tp["form"] == "drag":
+        if truth.name == "damping" and tp["form"] == "medium":  # a viscous medium (linear drag on the disks)
             data.xfrc_applied[:] = 0
             for b in drag_bodies:
                 v = np.zeros(6)
                 mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, v, 0)
                 lin = v[3:]
-                data.xfrc_applied[b, :3] = -tp["c_N_s2_per_m2"] * np.linalg.norm(lin) * lin
+                data.xfrc_applied[b, :3] = -tp["c_N_s_per_m"] * lin
         mujoco.mj_step(model, data)
         if k >= 0:
             tips[k] = rotation @ data.sensordata[tip_adr : tip_adr + 3]
@@ -209,7 +210,7 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
     for _ in range(int(rng.integers(1, 6))):
         start = int(rng.integers(0, n))
         tip[start : start + int(rng.integers(1, max(2, n // 60)))] = np.nan
-    commands = cmd_steps[pick] if closed else cmd_samples
+    commands = cmd_samples  # what was sent at each sample (the controller filled it in as it ran)
     meta = {"truth": truth.name, "truth_parameters": truth.parameters, "truth_muscle": truth.muscle,
             "protocol": protocol, "rate_Hz": rate, "noise_m": noise}  # fmt: skip
     return ArmRecording(t_samples, muscles, commands, tip, meta=meta)
@@ -234,9 +235,12 @@ def random_truth(name: str, muscles: list[str], rng: np.random.Generator) -> Tru
             },
         )
     if name == "damping":
-        if rng.random() < 0.5:
-            return Truth(name, {"form": "hinge", "factor": float(rng.uniform(3.0, 12.0))})
-        return Truth(name, {"form": "drag", "c_N_s2_per_m2": float(rng.uniform(5.0, 40.0))})
+        form = str(rng.choice(["hinge", "tendon", "medium"]))
+        if form == "hinge":
+            return Truth(name, {"form": form, "factor": float(rng.uniform(3.0, 12.0))})
+        if form == "tendon":
+            return Truth(name, {"form": form, "c_N_s_per_m": float(rng.uniform(20.0, 100.0))})
+        return Truth(name, {"form": form, "c_N_s_per_m": float(rng.uniform(0.5, 3.0))})
     if name == "pressure_lag":
         muscle = None if rng.random() < 0.3 else str(rng.choice(muscles))
         return Truth(
