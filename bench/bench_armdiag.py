@@ -17,6 +17,11 @@ held-out blocks.
 
 Usage: python bench/bench_armdiag.py [--reps 3] [--reps-2 1] [--seed 31000] [--duration 20]
 Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_tip.png.
+On a shared machine, run shards in parallel and merge them::
+
+    python bench/bench_armdiag.py --shard 0/3 --no-timing --out out/a0.json   # and 1/3, 2/3
+    python bench/bench_armdiag.py --timing-only --out out/at.json
+    python bench/bench_armdiag.py --merge out/a0.json out/a1.json out/a2.json out/at.json
 """
 
 from __future__ import annotations
@@ -171,7 +176,16 @@ def main(argv=None) -> int:
     parser.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
     parser.add_argument("--no-timing", action="store_true", help="skip the 3-section timing case")
     parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument(
+        "--shard", default="0/1", help="i/n: run every n-th case from the i-th (parallel runs)"
+    )
+    parser.add_argument("--timing-only", action="store_true", help="run only the 3-section timing case")
+    parser.add_argument(
+        "--merge", type=Path, nargs="+", help="combine shard outputs into --out (and the figures)"
+    )
     args = parser.parse_args(argv)
+    if args.merge:
+        return merge(args)
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
     plan = []
     for arm_name, reps in (("1x3", args.reps), ("2x3", args.reps_2)):
@@ -179,6 +193,8 @@ def main(argv=None) -> int:
             for i, truth in enumerate(TRUTHS):
                 seed = args.seed + 1000 * (arm_name == "2x3") + 20 * rep + i
                 plan.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], seed))
+    shard, shards = (int(x) for x in args.shard.split("/"))
+    plan = [] if args.timing_only else plan[shard::shards]
     rows = []
     example = None
     started = time.perf_counter()
@@ -197,7 +213,7 @@ def main(argv=None) -> int:
             f"{row['heldout_rms_after_m'] * 1e3:.2f} mm (MJCF {row['heldout_rms_mjcf_m'] * 1e3:.2f}), {row['seconds_cpu']:.1f} s",
             flush=True,
         )  # fmt: skip
-    summary = score(rows)
+    summary = score(rows) if rows else None
     timing = None if args.no_timing else timing_case(specs["3x3"], args.seed + 5000)
     doc = {
         "summary": summary, "timing": timing, "rows": rows, "seed": args.seed,
@@ -205,14 +221,42 @@ def main(argv=None) -> int:
         "machine": {"python": platform.python_version(), "mujoco": mujoco.__version__, "cpu_count": os.cpu_count()},
     }  # fmt: skip
     write_json_atomic(args.out, doc)
-    if args.out == RESULTS:
+    if args.out == RESULTS and summary:
         confusion_figure(summary["confusion"], FIGURES / "armdiag_confusion.png")
         if example is not None:
             figures(example, FIGURES)
-    print({k: v for k, v in summary.items() if k not in ("confusion", "per_truth")})
-    print("per truth:", {k: f"{v['right']}/{v['n']}" for k, v in summary["per_truth"].items()})
+    _print(summary, timing)
+    return 0
+
+
+def _print(summary, timing):
+    if summary:
+        print({k: v for k, v in summary.items() if k not in ("confusion", "per_truth")})
+        print("per truth:", {k: f"{v['right']}/{v['n']}" for k, v in summary["per_truth"].items()})
     if timing:
         print("timing:", timing)
+
+
+def merge(args) -> int:
+    """Combine the shards' rows (and the timing) into one result, its confusion matrix and figures."""
+    import json
+
+    docs = [json.loads(Path(p).read_text()) for p in args.merge]
+    rows = sorted((r for d in docs for r in d["rows"]), key=lambda r: (r["arm"], r["seed"]))
+    timing = next((d["timing"] for d in docs if d.get("timing")), None)
+    summary = score(rows)
+    doc = {
+        "summary": summary, "timing": timing, "rows": rows, "seed": docs[0]["seed"],
+        "duration_s_per_recording": docs[0].get("duration_s_per_recording"),
+        "bench_wall_s": max(d.get("bench_wall_s", 0) for d in docs), "shards": len(docs),
+        "machine": {"python": platform.python_version(), "mujoco": mujoco.__version__, "cpu_count": os.cpu_count()},
+    }  # fmt: skip
+    write_json_atomic(args.out, doc)
+    confusion_figure(summary["confusion"], FIGURES / "armdiag_confusion.png")
+    specs = {k: arm.build_spec(v) for k, v in arms().items()}
+    _, example = run_case("1x3", specs["1x3"], "weak_muscle", "steps", docs[0]["seed"] + 5, 20.0)
+    figures(example, FIGURES)
+    _print(summary, timing)
     return 0
 
 
