@@ -188,6 +188,8 @@ def diagnose_arm(
     verdict = {
         "answer": first, "probability": prob[first], "confident": confident, "ambiguous": ambiguous,
         "alternatives": [second] if ambiguous else [], "n_eff": n_eff,
+        # no library term pays, yet the re-fitted model stays well above the marker noise
+        "unexplained": first == "none" and heldout_none > 3 * noise,
         "reason": "the re-fitted model reproduces the held-out blocks at the noise floor" if at_floor else
         "held-out likelihood with a parameter penalty",
     }  # fmt: skip

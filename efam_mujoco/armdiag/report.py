@@ -48,6 +48,11 @@ def text(d: ArmDiagnosis) -> str:
         )
         out.append(f"  held-out tip RMS {_mm(e['heldout_rms_before_m'])} -> {_mm(e['heldout_rms_after_m'])}")
         out.append(f"  switched on in: {e['switch_on']}")
+    if v.get("unexplained"):
+        out.append(
+            f"UNEXPLAINED: the held-out tip error stays at {_mm(d.heldout_rms_before_m)}, above 3 x the marker "
+            "noise, and no library term explains it (see 'Located mismatch')."
+        )
     if v["ambiguous"]:
         out.append(
             f"AMBIGUOUS: {v['answer']} and {', '.join(v['alternatives'])} explain this data about equally well."
