@@ -34,6 +34,7 @@ COMMAND_MODULES = (
     "efam_mujoco.size",
     "efam_mujoco.plugin.install",
     "efam_mujoco.suite.cli",
+    "efam_mujoco.armdiag",
 )
 
 #: Input and output arguments of commands whose module does not declare them itself

@@ -1,0 +1,264 @@
+"""Blind benchmark of ``efam diagnose-arm``: arm recordings with one concealed effect, or none.
+
+Each case: ``armdiag.synth`` runs the arm model with one concealed effect of random magnitude
+(written independently of the library, in other functional forms: see that module) under a lab
+protocol (steps, ramps, sinusoids, random sequences, a closed-loop tip controller), samples the
+tip at 30-200 Hz with 0.2-1 mm marker noise and dropouts in bursts. The diagnosis sees only the
+recording and the nominal arm model.
+
+Arms: 1 section of 3 FAM1 muscles upright (4 disks) and 2 sections hanging (2 disks per section),
+both at a 4 ms timestep; the timing case is a 3-section hanging arm (2 disks per section), 60 s at
+100 Hz, on one thread, CPU time of this process.
+
+Scored: top-1 among confident answers, false alarms on clean recordings, ambiguous share, the
+right muscle for weak_muscle, held-out tip RMS (model as built -> re-fitted -> identified), the
+confusion matrix, and that the written MJCF (identified terms switched on) reproduces the
+held-out blocks.
+
+Usage: python bench/bench_armdiag.py [--reps 3] [--reps-2 1] [--seed 31000] [--duration 20]
+Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_tip.png.
+On a shared machine, run shards in parallel and merge them::
+
+    python bench/bench_armdiag.py --shard 0/3 --no-timing --out out/a0.json   # and 1/3, 2/3
+    python bench/bench_armdiag.py --timing-only --out out/at.json
+    python bench/bench_armdiag.py --merge out/a0.json out/a1.json out/a2.json out/at.json
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import platform  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from efam_mujoco import arm  # noqa: E402
+from efam_mujoco.armdiag import diagnose_arm  # noqa: E402
+from efam_mujoco.armdiag.diagnosis import folds  # noqa: E402
+from efam_mujoco.armdiag.replay import Replayer  # noqa: E402
+from efam_mujoco.armdiag.report import figures, write_model  # noqa: E402
+from efam_mujoco.armdiag.synth import PROTOCOLS, TRUTHS, make_recording, random_truth  # noqa: E402
+from efam_mujoco.files import write_json_atomic  # noqa: E402
+from efam_mujoco.progress import progress  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "bench" / "results" / "armdiag.json"
+FIGURES = ROOT / "docs" / "figures"
+
+
+def arms() -> dict:
+    """The benchmark's arm models (nominal specs)."""
+    return {
+        "1x3": arm.ArmSpec(sections=(arm.paper_section(),), timestep_s=4e-3, name="arm_1x3"),
+        "2x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 2, orientation="hanging", timestep_s=4e-3, name="arm_2x3"),
+        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
+    }  # fmt: skip
+
+
+def reproduce(spec, d, rec) -> float:
+    """Held-out tip RMS of the written MJCF (identified terms on), replayed from the file alone."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_model(Path(tmp) / "identified.xml", spec, d)
+        model_spec = mujoco.MjSpec.from_file(str(path))
+    replayer = Replayer(model_spec, rec.time_s, rec.command_Pa, threads=1)
+    tip = replayer.tips([replayer.nominal])[0]
+    _, held = folds(rec.time_s, rec.valid)
+    return float(np.sqrt(np.mean((tip[held] - rec.tip_m[held]) ** 2)))
+
+
+def run_case(arm_name, spec, truth_name, protocol, seed, duration):
+    rng = np.random.default_rng(seed)
+    muscles = [a.name for a in spec.actuators]
+    truth = random_truth(truth_name, muscles, rng)
+    rec = make_recording(spec, truth, protocol, rng, duration_s=duration)
+    d = diagnose_arm(spec, rec, threads=1)
+    v = d.verdict
+    row = {
+        "arm": arm_name, "seed": seed, "truth": truth_name, "truth_muscle": truth.muscle,
+        "truth_parameters": truth.parameters, "protocol": protocol, "rate_Hz": rec.meta["rate_Hz"],
+        "noise_true_m": rec.meta["noise_m"], "noise_m": d.noise_m, "answer": v["answer"],
+        "probability": v["probability"], "confident": v["confident"], "ambiguous": v["ambiguous"],
+        "alternatives": v["alternatives"], "muscle": d.effects[0]["muscle"] if d.effects else None,
+        "parameters": d.effects[0]["parameters"] if d.effects else {},
+        "heldout_rms_nominal_m": d.heldout_rms_nominal_m, "heldout_rms_refit_m": d.heldout_rms_before_m,
+        "heldout_rms_after_m": d.heldout_rms_after_m, "seconds_cpu": d.seconds,
+        "next_experiment": d.next_experiment["recommended"] if d.next_experiment else None,
+        "rollouts": d.decisions["rollouts"],
+    }  # fmt: skip
+    row["heldout_rms_mjcf_m"] = reproduce(spec, d, rec)
+    return row, d
+
+
+def score(rows) -> dict:
+    effect = [r for r in rows if r["truth"] != "none"]
+    clean = [r for r in rows if r["truth"] == "none"]
+    confident = [r for r in rows if r["confident"]]
+    weak = [r for r in effect if r["truth"] == "weak_muscle" and r["answer"] == "weak_muscle"]
+    red_nom = [1 - r["heldout_rms_after_m"] / r["heldout_rms_nominal_m"] for r in effect]
+    red_refit = [1 - r["heldout_rms_after_m"] / r["heldout_rms_refit_m"] for r in effect]
+    labels = list(TRUTHS)
+    matrix = {t: {a: 0 for a in labels} for t in labels}
+    for r in rows:
+        matrix[r["truth"]][r["answer"]] += 1
+    per_truth = {
+        t: {"n": sum(1 for r in rows if r["truth"] == t), "right": sum(1 for r in rows if r["truth"] == t and r["answer"] == t)}
+        for t in labels
+    }  # fmt: skip
+    return {
+        "cases": len(rows),
+        "top1_all": float(np.mean([r["answer"] == r["truth"] for r in rows])),
+        "top1_confident": float(np.mean([r["answer"] == r["truth"] for r in confident])) if confident else None,
+        "confident_share": len(confident) / len(rows),
+        "false_alarms": float(np.mean([r["answer"] != "none" for r in clean])) if clean else None,
+        "ambiguous_share": float(np.mean([r["ambiguous"] for r in effect])) if effect else None,
+        "weak_muscle_named_right": float(np.mean([r["muscle"] == r["truth_muscle"] for r in weak])) if weak else None,
+        "median_heldout_reduction_vs_as_built": float(np.median(red_nom)) if effect else None,
+        "median_heldout_reduction_vs_refit": float(np.median(red_refit)) if effect else None,
+        "median_mjcf_over_diagnosis_heldout": float(np.median([r["heldout_rms_mjcf_m"] / r["heldout_rms_after_m"] for r in rows])),
+        "median_heldout_after_over_noise": float(np.median([r["heldout_rms_after_m"] / r["noise_true_m"] for r in effect])) if effect else None,
+        "per_truth": per_truth,
+        "confusion": matrix,
+    }  # fmt: skip
+
+
+def timing_case(spec, seed) -> dict:
+    rng = np.random.default_rng(seed)
+    muscles = [a.name for a in spec.actuators]
+    truth = random_truth("weak_muscle", muscles, rng)
+    rec = make_recording(spec, truth, "random", rng, duration_s=60.0, rate_Hz=100.0)
+    wall = time.perf_counter()
+    d = diagnose_arm(spec, rec, threads=1)
+    return {
+        "arm": "3x3 (2 disks per section, 4 ms)", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
+        "seconds_cpu_one_thread": d.seconds, "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
+        "truth": truth.name, "truth_muscle": truth.muscle, "answer": d.verdict["answer"],
+        "muscle": d.effects[0]["muscle"] if d.effects else None, "heldout_rms_after_m": d.heldout_rms_after_m,
+    }  # fmt: skip
+
+
+def confusion_figure(matrix, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = list(matrix)
+    m = np.array([[matrix[t][a] for a in labels] for t in labels])
+    fig, ax = plt.subplots(figsize=(7, 6))
+    ax.imshow(m, cmap="Blues")
+    for i in range(len(labels)):
+        for j in range(len(labels)):
+            if m[i, j]:
+                ax.text(j, i, m[i, j], ha="center", va="center", color="k" if m[i, j] < m.max() / 2 else "w")
+    ax.set_xticks(range(len(labels)), labels, rotation=45, ha="right")
+    ax.set_yticks(range(len(labels)), labels)
+    ax.set_xlabel("named by efam diagnose-arm")
+    ax.set_ylabel("concealed in the recording")
+    ax.set_title("Arm diagnosis, blind benchmark")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--reps", type=int, default=3, help="cases per truth on the 1-section arm")
+    parser.add_argument("--reps-2", type=int, default=1, help="cases per truth on the 2-section arm")
+    parser.add_argument("--seed", type=int, default=31000)
+    parser.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
+    parser.add_argument("--no-timing", action="store_true", help="skip the 3-section timing case")
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument(
+        "--shard", default="0/1", help="i/n: run every n-th case from the i-th (parallel runs)"
+    )
+    parser.add_argument("--timing-only", action="store_true", help="run only the 3-section timing case")
+    parser.add_argument(
+        "--merge", type=Path, nargs="+", help="combine shard outputs into --out (and the figures)"
+    )
+    args = parser.parse_args(argv)
+    if args.merge:
+        return merge(args)
+    specs = {k: arm.build_spec(v) for k, v in arms().items()}
+    plan = []
+    for arm_name, reps in (("1x3", args.reps), ("2x3", args.reps_2)):
+        for rep in range(reps):
+            for i, truth in enumerate(TRUTHS):
+                seed = args.seed + 1000 * (arm_name == "2x3") + 20 * rep + i
+                plan.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], seed))
+    shard, shards = (int(x) for x in args.shard.split("/"))
+    plan = [] if args.timing_only else plan[shard::shards]
+    rows = []
+    example = None
+    started = time.perf_counter()
+    for arm_name, truth, protocol, seed in progress(plan, "armdiag bench"):
+        row, d = run_case(arm_name, specs[arm_name], truth, protocol, seed, args.duration)
+        rows.append(row)
+        if example is None and truth == "weak_muscle":
+            example = d
+        write_json_atomic(
+            args.out, {"partial": True, "rows": rows, "seed": args.seed}
+        )  # survives an interrupted run
+        print(
+            f"{arm_name} {truth:16s} {protocol:11s} {row['rate_Hz']:5.0f} Hz -> {row['answer']:16s} "
+            f"p {row['probability']:.2f}{' AMB' if row['ambiguous'] else ''} muscle {row['muscle']} (true {row['truth_muscle']}); "
+            f"held-out {row['heldout_rms_nominal_m'] * 1e3:.2f} / {row['heldout_rms_refit_m'] * 1e3:.2f} / "
+            f"{row['heldout_rms_after_m'] * 1e3:.2f} mm (MJCF {row['heldout_rms_mjcf_m'] * 1e3:.2f}), {row['seconds_cpu']:.1f} s",
+            flush=True,
+        )  # fmt: skip
+    summary = score(rows) if rows else None
+    timing = None if args.no_timing else timing_case(specs["3x3"], args.seed + 5000)
+    doc = {
+        "summary": summary, "timing": timing, "rows": rows, "seed": args.seed,
+        "duration_s_per_recording": args.duration, "bench_wall_s": time.perf_counter() - started,
+        "machine": {"python": platform.python_version(), "mujoco": mujoco.__version__, "cpu_count": os.cpu_count()},
+    }  # fmt: skip
+    write_json_atomic(args.out, doc)
+    if args.out == RESULTS and summary:
+        confusion_figure(summary["confusion"], FIGURES / "armdiag_confusion.png")
+        if example is not None:
+            figures(example, FIGURES)
+    _print(summary, timing)
+    return 0
+
+
+def _print(summary, timing):
+    if summary:
+        print({k: v for k, v in summary.items() if k not in ("confusion", "per_truth")})
+        print("per truth:", {k: f"{v['right']}/{v['n']}" for k, v in summary["per_truth"].items()})
+    if timing:
+        print("timing:", timing)
+
+
+def merge(args) -> int:
+    """Combine the shards' rows (and the timing) into one result, its confusion matrix and figures."""
+    import json
+
+    docs = [json.loads(Path(p).read_text()) for p in args.merge]
+    rows = sorted((r for d in docs for r in d["rows"]), key=lambda r: (r["arm"], r["seed"]))
+    timing = next((d["timing"] for d in docs if d.get("timing")), None)
+    summary = score(rows)
+    doc = {
+        "summary": summary, "timing": timing, "rows": rows, "seed": docs[0]["seed"],
+        "duration_s_per_recording": docs[0].get("duration_s_per_recording"),
+        "bench_wall_s": max(d.get("bench_wall_s", 0) for d in docs), "shards": len(docs),
+        "machine": {"python": platform.python_version(), "mujoco": mujoco.__version__, "cpu_count": os.cpu_count()},
+    }  # fmt: skip
+    write_json_atomic(args.out, doc)
+    confusion_figure(summary["confusion"], FIGURES / "armdiag_confusion.png")
+    specs = {k: arm.build_spec(v) for k, v in arms().items()}
+    _, example = run_case("1x3", specs["1x3"], "weak_muscle", "steps", docs[0]["seed"] + 5, 20.0)
+    figures(example, FIGURES)
+    _print(summary, timing)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

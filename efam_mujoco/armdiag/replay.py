@@ -1,0 +1,240 @@
+"""Replay a recording's commands in MuJoCo, for many model variants at once (``mujoco.rollout``).
+
+A model variant is the arm model plus a :class:`Knobs` setting: the calibration the model already
+has (per-muscle pressure gain and offset, damping, pressure lag) and the effect terms of the
+library (tip payload, base tilt, compliant mount, muscle friction, pressure cross-talk). Every
+knob is applied as a post-build edit of the :class:`mujoco.MjSpec` (a body, a joint, a quaternion,
+a plugin config key, damping, ``dynprm``) or as the command-to-ctrl map, so the arm builder's
+internals are never touched. ``Replayer.tips`` rolls a batch of variants out in one call
+(threads where there are cores) and returns the tip at the recording's sample times.
+
+Timing: the arm starts at rest under the first command (``settle_s`` of simulated time at the
+first row before t0); commands are held from one sample to the next (zero-order hold, as a valve
+controller sends them); sample k is compared with the tip at the step that starts at its time.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field, replace
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from .. import plugin
+
+_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: custom numerics that carry the command map in an MJCF (per muscle; mix: one value)
+CTRL_GAIN, CTRL_OFFSET, CTRL_MIX = "efam_ctrl_gain", "efam_ctrl_offset_Pa", "efam_ctrl_mix"
+#: friction term lifted from the muscle level: fixed pre-sliding widths, fitted amplitude
+FRICTION_SLIP_STRAIN = 3e-3
+FRICTION_SLIP_KPA = 6.0
+
+
+@dataclass(frozen=True)
+class Knobs:
+    """Everything a variant changes, SI. ``None`` arrays mean 'as the model has it'."""
+
+    gain: tuple = ()  # per muscle, effective pressure = gain * mixed command - offset
+    offset_Pa: tuple = ()  # per muscle
+    cross_talk: float = 0.0  # mixed_i = (1 - c) p_i + c mean(p_j, j neighbours in the section)
+    lag_s: tuple = ()  # per muscle pressure time constant (filterexact)
+    damping_axial: float = 1.0  # multiplier on the slide joints' damping
+    damping_bend: float = 1.0  # multiplier on the hinge joints' damping
+    payload_kg: float = 0.0
+    tilt_rad: tuple = (0.0, 0.0)  # base turned about the world x, then y axis
+    mount_stiffness_N_m_per_rad: float = 0.0  # 0: rigid mount
+    mount_damping_N_m_s_per_rad: float = 0.0
+    friction_N: float = 0.0  # efam.muscle friction f0_N on every muscle
+
+    def structure(self) -> tuple:
+        """Variants with the same structure can share one rollout batch."""
+        return (self.payload_kg > 0, self.mount_stiffness_N_m_per_rad > 0, self.friction_N > 0)
+
+
+def sections_of(muscles: list[str]) -> list[list[int]]:
+    """Muscle indices grouped by section (names ``s{j}m{i}``; any other naming: one group)."""
+    groups: dict[str, list[int]] = {}
+    for i, name in enumerate(muscles):
+        m = re.fullmatch(r"(s\d+)m\d+", name)
+        groups.setdefault(m.group(1) if m else "all", []).append(i)
+    return list(groups.values())
+
+
+@dataclass
+class Replayer:
+    """Replays one recording's commands on variants of one arm model."""
+
+    spec: mujoco.MjSpec
+    time_s: np.ndarray
+    command_Pa: np.ndarray
+    settle_s: float = 3.0
+    threads: int = 1
+    muscles: list[str] = field(init=False)
+    nominal: Knobs = field(init=False)
+
+    def __post_init__(self):
+        plugin.load()
+        self.spec = self.spec.copy()
+        for act in self.spec.actuators:  # every muscle gets a pressure state (lag ~0 if it had none)
+            if act.dyntype == mujoco.mjtDyn.mjDYN_NONE:
+                act.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+                act.dynprm[0] = 1e-4
+                act.actdim = 1
+        self.muscles = [a.name for a in self.spec.actuators]
+        self.groups = sections_of(self.muscles)
+        base = self.spec.compile()
+        self.dt = float(base.opt.timestep)
+        self.max_Pa = base.actuator_ctrlrange[:, 1].copy()
+        self._damping0 = {j.name: j.damping for j in self.spec.joints}
+        self.nominal = Knobs(
+            gain=(1.0,) * base.nu, offset_Pa=(0.0,) * base.nu, lag_s=tuple(base.actuator_dynprm[:, 0])
+        )
+        stored = {n.name: list(n.data) for n in self.spec.numerics}  # a command map written with the model
+        if CTRL_GAIN in stored:
+            self.nominal = with_values(
+                self.nominal, gain=stored[CTRL_GAIN], offset_Pa=stored.get(CTRL_OFFSET, [0.0] * base.nu),
+                cross_talk=float(stored.get(CTRL_MIX, [0.0])[0]),
+            )  # fmt: skip
+        t0 = self.time_s[0]
+        self.n_settle = int(round(self.settle_s / self.dt))
+        n_run = int(math.floor((self.time_s[-1] - t0) / self.dt)) + 1
+        grid = t0 + self.dt * np.arange(n_run)
+        held = np.searchsorted(self.time_s, grid + 1e-9, side="right") - 1
+        self.step_command = np.vstack(
+            [np.repeat(self.command_Pa[:1], self.n_settle, 0), self.command_Pa[held]]
+        )
+        self.sample_step = self.n_settle + np.minimum(
+            np.round((self.time_s - t0) / self.dt).astype(int), n_run - 1
+        )
+        self._datas = None
+        self.rollouts = 0
+
+    # ------------------------------------------------------------------ variants as models
+
+    def edited_spec(self, k: Knobs) -> mujoco.MjSpec:
+        """The arm model with ``k``'s model terms switched on (the command map is separate)."""
+        spec = self.spec.copy()
+        base = spec.body("base")
+        for j in spec.joints:
+            if j.type == mujoco.mjtJoint.mjJNT_SLIDE:
+                j.damping = self._damping0[j.name] * k.damping_axial
+            elif j.type == mujoco.mjtJoint.mjJNT_HINGE:
+                j.damping = self._damping0[j.name] * k.damping_bend
+        for act, tau in zip(spec.actuators, k.lag_s):
+            act.dynprm[0] = tau
+        if any(k.tilt_rad):
+            q = np.zeros(4)
+            qx = np.array([math.cos(k.tilt_rad[0] / 2), math.sin(k.tilt_rad[0] / 2), 0, 0])
+            qy = np.array([math.cos(k.tilt_rad[1] / 2), 0, math.sin(k.tilt_rad[1] / 2), 0])
+            mujoco.mju_mulQuat(q, qy, qx)
+            out = np.zeros(4)
+            mujoco.mju_mulQuat(out, q, np.asarray(base.quat, float))
+            base.quat = out
+        if k.payload_kg > 0:
+            tip_body = next(b for b in spec.bodies if "tip" in [s.name for s in b.sites])
+            tip = next(s for s in tip_body.sites if s.name == "tip")
+            r = 0.015
+            # the mass on the geom (not an explicit <inertial>) so that it survives the MJCF round trip
+            load = tip_body.add_body(name="payload", pos=list(tip.pos))
+            load.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0], contype=0, conaffinity=0,
+                          group=2, mass=k.payload_kg)  # fmt: skip
+        if k.mount_stiffness_N_m_per_rad > 0:
+            for name, axis in (("mount_x", [1, 0, 0]), ("mount_y", [0, 1, 0])):
+                base.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
+                               stiffness=k.mount_stiffness_N_m_per_rad,
+                               damping=k.mount_damping_N_m_s_per_rad, armature=1e-4)  # fmt: skip
+            base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.005, 0, 0], contype=0, conaffinity=0,
+                          group=2, mass=1e-3)  # fmt: skip
+        if k.friction_N > 0:
+            for instance in spec.plugins:
+                if instance.plugin_name == plugin.PLUGIN_NAME:
+                    cfg = dict(instance.config)
+                    cfg.update(plugin.effects_config([("friction", self.friction_values(k.friction_N))]))
+                    instance.config = cfg
+        return spec
+
+    @staticmethod
+    def friction_values(f0_N: float) -> dict:
+        return {"f0_N": f0_N, "f1_N_per_MPa": 0.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
+                "slip_strain": FRICTION_SLIP_STRAIN, "slip_kPa": FRICTION_SLIP_KPA}  # fmt: skip
+
+    def model_with(self, k: Knobs) -> mujoco.MjSpec:
+        """``edited_spec(k)`` plus ``k``'s command map stored as custom numerics (an MJCF that a
+        :class:`Replayer` replays as it was identified)."""
+        spec = self.edited_spec(k)
+        for n in list(spec.numerics):
+            if n.name in (CTRL_GAIN, CTRL_OFFSET, CTRL_MIX):
+                spec.delete(n)
+        spec.add_numeric(name=CTRL_GAIN, data=list(k.gain), size=len(k.gain))
+        spec.add_numeric(name=CTRL_OFFSET, data=list(k.offset_Pa), size=len(k.offset_Pa))
+        spec.add_numeric(name=CTRL_MIX, data=[k.cross_talk], size=1)
+        return spec
+
+    def controls(self, k: Knobs, command_Pa: np.ndarray | None = None) -> np.ndarray:
+        """Commands -> ctrl (effective pressures, Pa) through ``k``'s command map."""
+        p = self.step_command if command_Pa is None else command_Pa
+        mixed = p.copy()
+        if k.cross_talk:
+            for group in self.groups:
+                if len(group) > 1:
+                    sub = p[:, group]
+                    others = (sub.sum(1, keepdims=True) - sub) / (len(group) - 1)
+                    mixed[:, group] = (1 - k.cross_talk) * sub + k.cross_talk * others
+        out = np.asarray(k.gain) * mixed - np.asarray(k.offset_Pa)
+        return np.clip(out, 0.0, self.max_Pa)
+
+    # ------------------------------------------------------------------------- rolling out
+
+    def tips(self, variants: list[Knobs], command_Pa: np.ndarray | None = None, samples=None) -> np.ndarray:
+        """Tip positions (variants, samples, 3) at the recording's sample times (or every step
+        of ``command_Pa`` when given, then ``samples`` picks steps)."""
+        out = [None] * len(variants)
+        by_structure: dict[tuple, list[int]] = {}
+        for i, k in enumerate(variants):
+            by_structure.setdefault(k.structure(), []).append(i)
+        for idx in by_structure.values():
+            models = [self.edited_spec(variants[i]).compile() for i in idx]
+            ctrl = np.stack([self.controls(variants[i], command_Pa) for i in idx])
+            tip = self._rollout(models, ctrl)
+            pick = (
+                self.sample_step if command_Pa is None else (samples if samples is not None else slice(None))
+            )
+            for n, i in enumerate(idx):
+                out[i] = tip[n][pick]
+        return np.stack(out)
+
+    def _rollout(self, models, ctrl) -> np.ndarray:
+        m0 = models[0]
+        datas = [mujoco.MjData(m0) for _ in range(max(1, min(self.threads, len(models))))]
+        init = np.empty((len(models), mujoco.mj_stateSize(m0, _STATE)))
+        for n, m in enumerate(models):
+            d = datas[0]
+            mujoco.mj_resetData(m, d)
+            d.act[:] = ctrl[n, 0][m.actuator_actadr >= 0] if m.na == m.nu else d.act
+            mujoco.mj_getState(m, d, init[n], _STATE)
+        adr = m0.sensor("tip_pos").adr[0]
+        _, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
+        self.rollouts += len(models)
+        bad = ~np.all(np.isfinite(sensordata[:, :, adr : adr + 3]), axis=(1, 2))
+        tips = sensordata[:, :, adr : adr + 3].copy()
+        tips[bad] = 1e3  # a variant that blew up fits nothing
+        return tips
+
+
+def with_values(k: Knobs, **changes) -> Knobs:
+    """``k`` with some knobs changed (tuples for per-muscle knobs)."""
+    return replace(
+        k, **{key: tuple(v) if isinstance(v, (list, np.ndarray)) else v for key, v in changes.items()}
+    )
+
+
+def default_threads() -> int:
+    """Threads for the rollouts: the cores this process may use (at most 8)."""
+    try:
+        return max(1, min(8, len(os.sched_getaffinity(0))))
+    except AttributeError:
+        return max(1, min(8, os.cpu_count() or 1))

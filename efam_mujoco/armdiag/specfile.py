@@ -1,0 +1,135 @@
+"""The arm model a recording refers to: an ArmSpec as JSON (``efam_mujoco.arm_spec/1``) or an MJCF.
+
+JSON layout (units in the keys, muscles as muscle-file documents so a calibrated muscle travels
+with the arm)::
+
+    {"format": "efam_mujoco.arm_spec/1", "name": "arm_1x3", "orientation": "upright",
+     "pressure_tau_s": 0.05, "max_pressure_Pa": 517106.8, "payload_kg": 0.0, "gravity": true,
+     "timestep_s": 0.001, "axial_damping_N_s_per_m": 40.0, "bend_damping_N_m_s_per_rad": 0.3,
+     "sections": [{"radius_m": 0.02, "angles_deg": [0, 120, 240], "disks": 4,
+                   "end_mass_kg": null, "body_mass_kg": null, "plate_mass_kg": 0.0,
+                   "muscles": [<muscle document>, ...]}]}
+
+A muscle entry may also be a preset name (``"FAM1"``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import fields
+from pathlib import Path
+
+import mujoco
+
+from .. import plugin
+from ..arm import ArmSpec, SectionSpec, build_spec
+from ..files import write_json_atomic
+from ..musclefile import MuscleFileError, load_muscle, muscle_document, muscle_from_document
+
+FORMAT = "efam_mujoco.arm_spec/1"
+_SECTION_KEYS = ("radius_m", "angles_deg", "disks", "end_mass_kg", "body_mass_kg", "plate_mass_kg")
+
+
+class ArmModelError(ValueError):
+    """An arm model file that cannot be used; the message names the file and the key."""
+
+
+def spec_to_dict(arm: ArmSpec) -> dict:
+    """An :class:`ArmSpec` as a JSON-ready dict (inverse of :func:`spec_from_dict`)."""
+    doc = {"format": FORMAT}
+    for f in fields(ArmSpec):
+        if f.name != "sections":
+            doc[f.name] = getattr(arm, f.name)
+    doc["sections"] = [
+        {**{k: getattr(s, k) for k in _SECTION_KEYS}, "muscles": [muscle_document(m) for m in s.muscles]}
+        for s in arm.sections
+    ]
+    doc["sections"] = json.loads(json.dumps(doc["sections"]))  # tuples -> lists
+    return doc
+
+
+def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
+    """The :class:`ArmSpec` of a dict written by :func:`spec_to_dict` (clear errors naming the key)."""
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ArmModelError(f"{label}: key 'format' must be {FORMAT!r}")
+    known = {f.name for f in fields(ArmSpec)}
+    unknown = sorted(set(doc) - known - {"format"})
+    if unknown:
+        raise ArmModelError(f"{label}: unknown key(s) {', '.join(unknown)}")
+    sections = doc.get("sections")
+    if not isinstance(sections, list) or not sections:
+        raise ArmModelError(f"{label}: key 'sections' must be a non-empty list")
+    built = []
+    for j, s in enumerate(sections):
+        where = f"{label}: sections[{j}]"
+        if not isinstance(s, dict) or not isinstance(s.get("muscles"), list):
+            raise ArmModelError(f"{where}: needs a 'muscles' list")
+        bad = sorted(set(s) - set(_SECTION_KEYS) - {"muscles"})
+        if bad:
+            raise ArmModelError(f"{where}: unknown key(s) {', '.join(bad)}")
+        muscles = []
+        for i, m in enumerate(s["muscles"]):
+            try:
+                muscles.append(
+                    load_muscle(m) if isinstance(m, str) else muscle_from_document(m, f"{where}.muscles[{i}]")
+                )
+            except (MuscleFileError, ValueError, TypeError) as err:
+                raise ArmModelError(f"{where}.muscles[{i}]: {err}") from None
+        kw = {k: s[k] for k in _SECTION_KEYS if k in s}
+        if kw.get("angles_deg") is not None:
+            kw["angles_deg"] = tuple(kw["angles_deg"])
+        try:
+            built.append(SectionSpec(muscles=tuple(muscles), **kw))
+        except (ValueError, TypeError) as err:
+            raise ArmModelError(f"{where}: {err}") from None
+    kw = {k: doc[k] for k in known - {"sections"} if k in doc}
+    try:
+        return ArmSpec(sections=tuple(built), **kw)
+    except (ValueError, TypeError) as err:
+        raise ArmModelError(f"{label}: {err}") from None
+
+
+def save_spec(path: str | Path, arm: ArmSpec) -> Path:
+    """Write an arm spec file (JSON) atomically."""
+    return write_json_atomic(path, spec_to_dict(arm))
+
+
+def load_spec(path: str | Path) -> ArmSpec:
+    """Read an arm spec file (JSON)."""
+    label = str(path)
+    try:
+        doc = json.loads(Path(path).read_text())
+    except OSError as err:
+        raise ArmModelError(f"{label}: cannot open ({err.strerror})") from None
+    except json.JSONDecodeError as err:
+        raise ArmModelError(f"{label}: line {err.lineno}, column {err.colno}: not JSON ({err.msg})") from None
+    return spec_from_dict(doc, label)
+
+
+def load_arm_model(path: str | Path) -> mujoco.MjSpec:
+    """The arm as an :class:`mujoco.MjSpec` from a spec file (``.json``) or an MJCF (``.xml``).
+
+    The model must have a body ``base``, a sensor ``tip_pos`` and one actuator per muscle whose
+    ctrl is the gauge pressure in Pa (what :func:`efam_mujoco.arm.build_spec` makes)."""
+    plugin.load()
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        spec = build_spec(load_spec(path))
+    else:
+        try:
+            spec = mujoco.MjSpec.from_file(str(path))
+        except Exception as err:  # MuJoCo's parser names line and column itself
+            raise ArmModelError(f"{path}: not a usable MJCF: {err}") from None
+    check_arm_model(spec, str(path))
+    return spec
+
+
+def check_arm_model(spec: mujoco.MjSpec, label: str) -> None:
+    """Refuse a model the arm diagnosis cannot replay, naming what is missing."""
+    names = {b.name for b in spec.bodies}
+    if "base" not in names:
+        raise ArmModelError(f"{label}: no body named 'base' (the arm's mount)")
+    if "tip_pos" not in {s.name for s in spec.sensors}:
+        raise ArmModelError(f"{label}: no sensor named 'tip_pos' (framepos of the tip)")
+    if not spec.actuators:
+        raise ArmModelError(f"{label}: no actuators (one per muscle, ctrl = gauge pressure in Pa)")

@@ -1,0 +1,213 @@
+"""efam diagnose-arm: file formats, replay against plain MuJoCo stepping, and blind diagnoses."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import fields, replace
+
+import mujoco
+import numpy as np
+import pytest
+
+from efam_mujoco import arm
+from efam_mujoco.armdiag import (
+    ArmModelError,
+    ArmRecording,
+    ArmRecordingError,
+    diagnose_arm,
+    load_arm_model,
+    read_csv,
+    save_spec,
+    write_csv,
+)
+from efam_mujoco.armdiag.replay import Replayer, with_values
+from efam_mujoco.armdiag.report import write_model
+from efam_mujoco.armdiag.specfile import spec_from_dict, spec_to_dict
+from efam_mujoco.armdiag.synth import Truth, make_recording
+from efam_mujoco.cli import main as efam
+
+DT = 4e-3
+
+
+def small_arm(**kw) -> arm.ArmSpec:
+    return arm.ArmSpec(sections=(arm.paper_section(),), timestep_s=DT, name="arm_1x3", **kw)
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return arm.build_spec(small_arm())
+
+
+def test_spec_json_round_trip_and_errors(tmp_path):
+    two = arm.ArmSpec(sections=(arm.paper_section(disks=2, muscle="FAM2"),) * 2, orientation="hanging")
+    back = spec_from_dict(json.loads(json.dumps(spec_to_dict(two))))
+    assert replace(back, sections=two.sections) == two
+    for a, b in zip(back.sections, two.sections):
+        assert replace(a, muscles=b.muscles) == b
+        for ma, mb in zip(a.muscles, b.muscles):  # muscle files store derived constants: last-bit rounding
+            for f in fields(mb):
+                va, vb = getattr(ma, f.name), getattr(mb, f.name)
+                assert va == (pytest.approx(vb, rel=1e-12) if isinstance(vb, float) else vb), f.name
+    path = save_spec(tmp_path / "arm.json", two)
+    assert len(load_arm_model(path).actuators) == 6
+    doc = spec_to_dict(two)
+    doc["payload_kilo"] = 1
+    with pytest.raises(ArmModelError, match="payload_kilo"):
+        spec_from_dict(doc)
+    doc = spec_to_dict(two)
+    doc["sections"][1]["radius_m"] = -1
+    with pytest.raises(ArmModelError, match=r"sections\[1\].*radius_m"):
+        spec_from_dict(doc)
+    (tmp_path / "bad.json").write_text('{"format": "efam_mujoco.arm_spec/1",\n "sections": [}')
+    with pytest.raises(ArmModelError, match="line 2, column"):
+        load_arm_model(tmp_path / "bad.json")
+
+
+def _csv(tmp_path, text):
+    path = tmp_path / "rec.csv"
+    path.write_text(text)
+    return path
+
+
+MUSCLES = ["s1m1", "s1m2", "s1m3"]
+HEAD = "time_s,p_s1m1_kPa,p_s1m2_kPa,p_s1m3_kPa,tip_x_mm,tip_y_mm,tip_z_mm\n"
+
+
+def test_reader_units_dropouts_and_round_trip(tmp_path):
+    rec = read_csv(
+        _csv(tmp_path, HEAD + "0,100,100,100,1,2,200\n0.01,1,2,3,,,\n0.02,0.5,0,0,1,2,201\n"), MUSCLES
+    )
+    assert rec.command_Pa[0, 0] == pytest.approx(1e5) and rec.tip_m[2, 2] == pytest.approx(0.201)
+    assert (
+        np.isnan(rec.tip_m[1]).all() and rec.meta["dropouts"] == 1 and list(rec.valid) == [True, False, True]
+    )
+    again = read_csv(write_csv(tmp_path / "out.csv", rec), MUSCLES)
+    np.testing.assert_allclose(again.command_Pa, rec.command_Pa)
+    np.testing.assert_allclose(again.tip_m, rec.tip_m)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            HEAD.replace("p_s1m3_kPa", "p_s1m9_kPa") + "0,1,1,1,0,0,0\n",
+            r"line 1, column 4 \('p_s1m9_kPa'\): no muscle",
+        ),
+        (HEAD.replace(",p_s1m3_kPa", "") + "0,1,1,0,0,0\n", "missing column.*p_s1m3_kPa"),
+        (
+            HEAD.replace("tip_z_mm", "tip_z_furlong") + "0,1,1,1,0,0,0\n",
+            "column 7.*unknown length unit 'furlong'",
+        ),
+        (HEAD + "0,1,1,1,0,0,0\n0.1,1,x,1,0,0,0\n", r"line 3, column 3 \('p_s1m2_kPa'\): not a number"),
+        (HEAD + "0,1,1,1,0,0,0\n0.1,1,-5,1,0,0,0\n", "line 3, column 3.*negative gauge pressure"),
+        (HEAD + "0,1,1,1,0,0,0\n0,1,1,1,0,0,0\n", "line 3, column 1.*time not increasing"),
+        (HEAD + "0,1,1,1,0,0,0\n0.1,1,1,0,0,0\n", "line 3: 6 fields"),
+        (HEAD + "0,1,1,1,0,0,0\n0.1,1,,1,0,0,0\n", "line 3, column 3.*empty value"),
+        ("time_s,foo_m\n", "unknown column"),
+    ],
+)
+def test_reader_names_file_line_and_column(tmp_path, text, message):
+    with pytest.raises(ArmRecordingError, match=message) as err:
+        read_csv(_csv(tmp_path, text), MUSCLES)
+    assert "rec.csv" in str(err.value)
+
+
+def test_replay_matches_plain_stepping(spec):
+    """The batched replay (rollout, command map, settle) equals mj_step by hand on the builder's model."""
+    t = np.arange(0, 2.0, 0.02)
+    cmd = np.column_stack([150e3 + 100e3 * np.sin(2 * np.pi * 0.7 * t + ph) for ph in (0, 2, 4)])
+    replayer = Replayer(spec, t, cmd)
+    tip = replayer.tips([replayer.nominal])[0]
+    model = arm.build_model(small_arm())
+    data = mujoco.MjData(model)
+    data.act[:] = cmd[0]
+    ref = []
+    n_settle = int(round(replayer.settle_s / DT))
+    for k in range(-n_settle, int(round(t[-1] / DT)) + 1):
+        data.ctrl[:] = cmd[max(0, np.searchsorted(t, k * DT + 1e-9, side="right") - 1)]
+        mujoco.mj_forward(model, data)
+        if k >= 0 and np.isclose(k * DT, t, atol=1e-9).any():
+            ref.append(data.site("tip").xpos.copy())
+        mujoco.mj_step(model, data)
+    np.testing.assert_allclose(tip, np.array(ref), atol=1e-9)
+
+
+def test_payload_knob_matches_the_builders_payload(spec):
+    """Static tip under the library's payload edit = the builder's own payload_kg option (equal
+    pressures: the arm stays straight, so where along the axis the mass sits does not matter)."""
+    t = np.arange(0, 6.0, 0.05)
+    cmd = np.tile([250e3, 250e3, 250e3], (len(t), 1))
+    replayer = Replayer(spec, t, cmd)
+    tip = replayer.tips([with_values(replayer.nominal, payload_kg=0.2)])[0][-1]
+    model = arm.build_model(small_arm(payload_kg=0.2))
+    data = mujoco.MjData(model)
+    arm.settle(model, data, cmd[0], t_max_s=12.0)
+    free = Replayer(spec, t, cmd).tips([replayer.nominal])[0][-1]
+    assert free[2] - tip[2] > 5e-4  # the payload compresses the arm (0.8 mm)....
+    assert np.linalg.norm(tip - data.site("tip").xpos) < 2e-5  # ...as the builder's payload does
+
+
+@pytest.fixture(scope="module")
+def weak_case(spec):
+    rng = np.random.default_rng(5)
+    truth = Truth("weak_muscle", {"drop_Pa": 20e3, "loss": 0.25}, "s1m2")
+    rec = make_recording(spec, truth, "steps", rng, duration_s=12.0, rate_Hz=60.0, noise_m=5e-4)
+    return rec, diagnose_arm(spec, rec, threads=1)
+
+
+def test_blind_weak_muscle_named_with_its_muscle(weak_case):
+    rec, d = weak_case
+    assert d.verdict["answer"] == "weak_muscle" and d.effects[0]["muscle"] == "s1m2"
+    assert d.heldout_rms_after_m < 0.5 * d.heldout_rms_nominal_m
+    keys = {"effects", "rms_before_m", "heldout_rms_before_m", "heldout_rms_after_m", "noise_m", "located",
+            "candidates", "decisions", "refit", "probabilities", "verdict", "next_experiment"}  # fmt: skip
+    assert keys <= set(d.to_json()) and "muscle" in d.to_json()["effects"][0]
+    json.dumps(d.to_json())
+
+
+def test_identified_mjcf_reproduces_the_diagnosis(tmp_path, spec, weak_case):
+    rec, d = weak_case
+    path = write_model(tmp_path / "identified.xml", spec, d)
+    replayer = Replayer(mujoco.MjSpec.from_file(str(path)), rec.time_s, rec.command_Pa)
+    np.testing.assert_allclose(replayer.tips([replayer.nominal])[0], d.tip_after, atol=1e-6)
+
+
+def test_clean_recording_is_no_alarm(spec):
+    rng = np.random.default_rng(8)
+    rec = make_recording(spec, Truth("none"), "sinusoids", rng, duration_s=10.0, rate_Hz=50.0, noise_m=5e-4)
+    d = diagnose_arm(spec, rec, threads=1, effects=("payload", "mount_tilt", "weak_muscle"))
+    assert d.verdict["answer"] == "none" and not d.effects
+
+
+def test_cli_diagnose_arm(tmp_path, capsys):
+    model = save_spec(tmp_path / "arm.json", small_arm())
+    spec = load_arm_model(model)
+    rng = np.random.default_rng(3)
+    rec = make_recording(spec, Truth("none"), "ramps", rng, duration_s=6.0, rate_Hz=40.0, noise_m=5e-4)
+    csv = write_csv(tmp_path / "rec.csv", ArmRecording(rec.time_s, rec.muscles, rec.command_Pa, rec.tip_m))
+    assert efam(["diagnose-arm", str(csv), "--model", str(model), "--report", str(tmp_path / "out")]) == 0
+    doc = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert doc["verdict"]["answer"] in doc["probabilities"]
+    assert (tmp_path / "out" / "arm_identified.xml").exists()
+    bad = tmp_path / "bad.csv"
+    bad.write_text(csv.read_text().replace("p_s1m1_kPa", "p_s1m1_kPaa"))
+    assert efam(["diagnose-arm", str(bad), "--model", str(model)]) == 2
+    assert "line 1, column 2" in capsys.readouterr().err
+
+
+def test_written_model_keeps_every_term(tmp_path, spec):
+    """Each library term written into an MJCF and read back replays exactly as the in-memory variant."""
+    t = np.arange(0, 3.0, 0.02)
+    cmd = np.column_stack([150e3 + 100e3 * np.sin(2 * np.pi * 0.7 * t + ph) for ph in (0, 2, 4)])
+    replayer = Replayer(spec, t, cmd)
+    k = with_values(
+        replayer.nominal, payload_kg=0.08, tilt_rad=(0.05, -0.03), mount_stiffness_N_m_per_rad=80.0,
+        mount_damping_N_m_s_per_rad=0.4, friction_N=3.0, cross_talk=0.2, gain=[1.0, 0.8, 1.0],
+        offset_Pa=[0.0, 5e3, 0.0], damping_bend=2.0, lag_s=[0.05, 0.2, 0.05],
+    )  # fmt: skip
+    path = tmp_path / "all.xml"
+    written = replayer.model_with(k)
+    written.compile()
+    path.write_text(written.to_xml())
+    again = Replayer(mujoco.MjSpec.from_file(str(path)), t, cmd)
+    np.testing.assert_allclose(again.tips([again.nominal])[0], replayer.tips([k])[0], atol=1e-6)
