@@ -43,13 +43,18 @@ def main(argv=None) -> int:
     colours = ("tab:blue", "tab:orange", "tab:green")
     for (label, orientation, pressures, payload), colour in zip(CASES, colours):
         spec = arm.ArmSpec(
-            sections=(arm.paper_section(),) * 2, orientation=orientation, payload_kg=payload, pressure_tau_s=0.0
+            sections=(arm.paper_section(),) * 2,
+            orientation=orientation,
+            payload_kg=payload,
+            pressure_tau_s=0.0,
         )
         model = arm.build_model(spec)
         data = mujoco.MjData(model)
         arm.static_equilibrium(model, data, pressures * 2)
         disks = [data.xpos[model.body("base").id]] + [
-            data.xpos[model.body(f"s{j}d{k}").id] for j in (1, 2) for k in range(1, spec.sections[0].disks + 1)
+            data.xpos[model.body(f"s{j}d{k}").id]
+            for j in (1, 2)
+            for k in range(1, spec.sections[0].disks + 1)
         ]
         reference = continuum.solve_arm_spec(spec, [pressures] * 2)
         x, z = world(spec, reference.backbone_m)
