@@ -3,8 +3,8 @@
 All nine muscles step from 0 to 310 kPa at t = 0.5 s (the arm extends), then at t = 3 s the
 first muscle of every section steps to full pressure in one time step (the arm bends away from
 it). The valve/tube lag of the shipped model (tau = 50 ms) filters each step. Plotted: the
-commanded and acting pressures, and the tip position against time, with the constant-curvature
-equilibrium under gravity (statics.solve_arm with the arm's lumped masses) for each hold.
+commanded and acting pressures, and the tip position against time, with the continuum reference
+equilibrium under gravity (arm.continuum.solve_arm_spec: the rod with the arm's masses) for each hold.
 
     python examples/arm_step_response.py [--out docs/figures/arm_step_response.png]
 """
@@ -55,7 +55,7 @@ def simulate(model, duration):
 
 
 def static_tip(spec, model, pressures):
-    """The CC equilibrium under gravity, as a world position."""
+    """The continuum reference at rest under gravity, as a world position."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     base = model.body("base").id
@@ -92,7 +92,7 @@ def main(argv=None) -> int:
         expected = static_tip(spec, model, pressures)
         for axis in range(3):
             ax_x.hlines(expected[axis] * 1e3, start, end, colors=f"C{axis + 2}", linestyles=":", lw=1.2)
-    ax_x.plot([], [], "k:", label="CC statics under gravity (hold value)")
+    ax_x.plot([], [], "k:", label="continuum reference at rest (hold value)")
     ax_x.set_xlabel("time (s)")
     ax_x.set_ylabel("tip position (mm)")
     ax_x.legend(fontsize=8, loc="center", bbox_to_anchor=(0.38, 0.55))

@@ -28,25 +28,14 @@ from efam_mujoco.statics import solve_section  # noqa: E402
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
 
 
-def settle(model, data, pressures, t_max=6.0):
+def settle(model, data, pressures):
     mujoco.mj_resetData(model, data)
-    data.ctrl[:] = pressures
-    while data.time < t_max:
-        for _ in range(100):
-            mujoco.mj_step(model, data)
-        if np.abs(data.qvel).max() < 1e-6:
-            break
-    return arm.base_frame_position(model, data, data.site("tip").xpos)
+    arm.static_equilibrium(model, data, pressures)
+    return arm.tip_in_base(model, data)
 
 
 def workspace(levels: int, max_bend_deg: float):
-    spec = arm.ArmSpec(
-        sections=(arm.paper_section(),),
-        gravity=False,
-        pressure_tau_s=0.0,
-        axial_damping_N_s_per_m=40.0,
-        bend_damping_N_m_s_per_rad=0.1,
-    )
+    spec = arm.ArmSpec(sections=(arm.paper_section(),), gravity=False, pressure_tau_s=0.0)
     model = arm.build_model(spec)
     data = mujoco.MjData(model)
     grid = np.linspace(arm.PAPER_PRESSURES_PA[0], arm.PAPER_PRESSURES_PA[-1], levels)
@@ -65,7 +54,7 @@ def plot(rows, out: Path, max_bend_deg: float):
     sim = np.array([t for _, t, _, _ in rows])
     cc = np.array([c for _, _, c, _ in rows])
     errors = np.array([np.linalg.norm(t - c) / s for _, t, c, s in rows])
-    fig = plt.figure(figsize=(12, 4.4))
+    fig = plt.figure(figsize=(13, 5.6))
     ax3 = fig.add_subplot(1, 3, 1, projection="3d")
     ax3.scatter(*(sim * 1e3).T, c=mean_kpa, cmap="viridis", s=14)
     ax3.set_xlabel("x (mm)")
@@ -75,7 +64,12 @@ def plot(rows, out: Path, max_bend_deg: float):
     for k, (i, j, name) in enumerate(((0, 2, "xz"), (0, 1, "xy"))):
         ax = fig.add_subplot(1, 3, k + 2)
         ax.scatter(
-            cc[:, i] * 1e3, cc[:, j] * 1e3, s=40, facecolors="none", edgecolors="0.6", label="CC statics"
+            cc[:, i] * 1e3,
+            cc[:, j] * 1e3,
+            s=40,
+            facecolors="none",
+            edgecolors="0.6",
+            label="continuum reference (CC, no load)",
         )
         points = ax.scatter(
             sim[:, i] * 1e3, sim[:, j] * 1e3, c=mean_kpa, cmap="viridis", s=12, label="MuJoCo"
@@ -84,14 +78,14 @@ def plot(rows, out: Path, max_bend_deg: float):
         ax.set_ylabel(f"{name[1]} (mm)")
         ax.set_aspect("equal")
         ax.set_title(f"{name} projection")
-        ax.legend(loc="lower left", fontsize=8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, frameon=False)
     fig.colorbar(points, ax=fig.axes[-1], label="mean pressure (kPa)")
     fig.suptitle(
-        f"One-section FAM1 bundle (r = 20 mm), {len(rows)} pressure triples, bend <= {max_bend_deg:.0f} deg\n"
-        f"tip vs constant curvature: max {errors.max():.2%}, mean {errors.mean():.2%} of section length",
+        f"One-section FAM1 bundle (r = 18.2 mm, D = 16), {len(rows)} pressure triples, bend <= {max_bend_deg:.0f} deg\n"
+        f"tip vs the continuum reference: max {errors.max():.2%}, mean {errors.mean():.2%} of section length",
         fontsize=10,
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     return errors
@@ -100,7 +94,7 @@ def plot(rows, out: Path, max_bend_deg: float):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--levels", type=int, default=5, help="pressure levels per muscle (103.4-517.1 kPa)")
-    parser.add_argument("--max-bend-deg", type=float, default=150.0)
+    parser.add_argument("--max-bend-deg", type=float, default=360.0)
     parser.add_argument("--out", type=Path, default=FIGURES / "arm_workspace.png")
     args = parser.parse_args(argv)
     rows = workspace(args.levels, args.max_bend_deg)
