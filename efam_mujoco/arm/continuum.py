@@ -169,14 +169,17 @@ class SectionState:
 
     @property
     def curvature_per_m(self) -> float:
+        """Magnitude of the section curvature (1/m)."""
         return math.hypot(*self.curvature_xy_per_m)
 
     @property
     def bend_angle_rad(self) -> float:
+        """Total bend of the section (rad): curvature times arc length."""
         return self.curvature_per_m * self.arc_length_m
 
     @property
     def bend_direction_rad(self) -> float:
+        """Direction of the curvature vector in the base plane of the section (rad from x)."""
         return math.atan2(self.curvature_xy_per_m[1], self.curvature_xy_per_m[0])
 
 
@@ -192,10 +195,12 @@ class ArmState:
 
     @property
     def tip_position_m(self) -> np.ndarray:
+        """Tip position of the last section in the arm's base frame (m)."""
         return self.section_tip_positions_m[-1]
 
     @property
     def tip_rotation(self) -> np.ndarray:
+        """Tip orientation of the last section (3x3 rotation in the arm's base frame)."""
         return self.section_tip_rotations[-1]
 
 

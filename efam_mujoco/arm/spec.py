@@ -102,6 +102,7 @@ class SectionSpec:
 
     @property
     def angles_rad(self) -> tuple[float, ...]:
+        """Angular positions of the muscles around the section axis (rad)."""
         return tuple(math.radians(a) for a in self.angles_deg)
 
     @property
@@ -174,6 +175,7 @@ class ArmSpec:
 
     @property
     def rest_length_m(self) -> float:
+        """Sum of the sections' resting lengths (m)."""
         return sum(s.rest_length_m for s in self.sections)
 
 
