@@ -4,19 +4,21 @@ The suite acts on whatever arm :mod:`efam_mujoco.arm` builds. It relies on this 
 
 * ``arm.ArmSpec``, ``arm.SectionSpec``, ``arm.paper_section`` (the domains' arms), with the
   fields ``sections``, ``orientation``, ``pressure_tau_s``, ``max_pressure_Pa``, ``gravity``,
-  ``timestep_s``, ``name`` and, per section, ``muscles``, ``radius_m``, ``angles_rad``;
+  ``timestep_s``, ``payload_kg``, ``name`` and, per section, ``muscles``, ``radius_m``,
+  ``angles_rad``, ``disks``;
 * ``arm.build_spec(spec) -> mujoco.MjSpec`` whose model has a fixed body ``base`` (z along the
   first section), per section j the disk bodies ``s{j}d{k}`` (k = 1..D, the last is the section's
   end plate), a site ``tip`` with sensor ``tip_pos``, and one actuator and one tendon per muscle,
   named by ``arm.muscle_names(spec)``, ctrl = gauge pressure in Pa, ctrlrange [0, rated];
 * the pressure convention of ``arm.muscle_pressures(model, data)`` (activation = pressure),
-  ``arm.gravity_in_base(spec)``, ``arm.point_masses(spec)``, ``arm.ORIENTATIONS``;
-* ``statics.solve_arm(sections, pressures, gravity_m_s2=, point_masses=, tip_force_N=,
-  initial=)`` returning ``tip_position_m`` (base frame): the reference the controllers invert.
+  ``arm.ORIENTATIONS``;
+* the continuum reference ``arm.solve_arm_spec(spec, pressures, tip_force_N=)`` (the arm's own
+  weight, its payload and orientation) returning ``tip_position_m`` (base frame) and per
+  section ``arc_length_m``, ``curvature_xy_per_m``: the reference the controllers invert, and
+  ``statics.cc_frame`` (the unloaded arc).
 
-Nothing here reads a joint name or an equality constraint, so a different joint structure
-inside the sections does not touch the suite. When the continuum reference replaces
-``statics.solve_arm``, :func:`reference_tip` is the one function to point at it.
+Nothing here reads a joint name, so the joint structure inside the sections does not touch the
+suite.
 """
 
 from __future__ import annotations
@@ -32,21 +34,29 @@ from .. import plugin, statics
 
 #: the paper's muscle preset every domain is built from
 DOMAIN_MUSCLE = "FAM1"
+#: spacer disks per section of the suite's domains: fewer than the arm's default (16) for
+#: throughput; the tip error this costs against the continuum reference is in docs/suite.md
+DOMAIN_DISKS = 4
 
 
 def bundle_spec(**overrides) -> arm_builder.ArmSpec:
-    """One section of three FAM1 muscles at 20 mm, upright (the ``bundle`` domain)."""
+    """One section of three FAM1 muscles at the default radius, upright (the ``bundle`` domain);
+    ``disks`` (default :data:`DOMAIN_DISKS`) and any ``ArmSpec`` field can be overridden."""
+    disks = overrides.pop("disks", DOMAIN_DISKS)
     options = {"orientation": "upright", "name": "efam_bundle"}
     options.update(overrides)
-    return arm_builder.ArmSpec(sections=(arm_builder.paper_section(muscle=DOMAIN_MUSCLE),), **options)
+    section = arm_builder.paper_section(disks=disks, muscle=DOMAIN_MUSCLE)
+    return arm_builder.ArmSpec(sections=(section,), **options)
 
 
 def arm_spec(**overrides) -> arm_builder.ArmSpec:
     """Three sections of three FAM1 muscles, hanging (the ``arm`` domain; upright it buckles
-    under its own weight at low pressure)."""
+    under its own weight at low pressure); ``disks`` (default :data:`DOMAIN_DISKS`) and any
+    ``ArmSpec`` field can be overridden."""
+    disks = overrides.pop("disks", DOMAIN_DISKS)
     options = {"orientation": "hanging", "name": "efam_arm"}
     options.update(overrides)
-    section = arm_builder.paper_section(muscle=DOMAIN_MUSCLE)
+    section = arm_builder.paper_section(disks=disks, muscle=DOMAIN_MUSCLE)
     return arm_builder.ArmSpec(sections=(section,) * 3, **options)
 
 
@@ -85,7 +95,8 @@ def section_muscles(spec: arm_builder.ArmSpec):
     """Per section: (muscles, radii (M,), angles (M,) in rad)."""
     out = []
     for section in spec.sections:
-        radii, angles = statics.muscle_layout(section)
+        angles = np.asarray(section.angles_rad, dtype=float)
+        radii = np.full(angles.shape, float(section.radius_m))
         out.append((tuple(section.muscles), radii, angles))
     return out
 
@@ -93,32 +104,186 @@ def section_muscles(spec: arm_builder.ArmSpec):
 # ---------------------------------------------------------------- the reference (statics)
 
 
+class _Statics:
+    """The domain's own MuJoCo model held at rest: settle, then Newton on qpos (finite-difference
+    stiffness) until the net generalized force vanishes. Warm-started from the last equilibrium
+    (the inverse statics probes nearby pressures)."""
+
+    def __init__(self, spec: arm_builder.ArmSpec):
+        plugin.load()
+        self.model = arm_builder.build_model(replace(spec, payload_kg=0.0))
+        self.data = mujoco.MjData(self.model)
+        self.lagged = np.flatnonzero(self.model.actuator_actadr >= 0)
+        self.tip_site = self.model.site("tip").id
+        self.tip_body = self.model.site_bodyid[self.tip_site]
+        self.base = self.model.body("base").id
+        self.chains = _section_chains(self.model)
+        self.warm: np.ndarray | None = None
+
+    def _residual(self, qpos, applied):
+        m, d = self.model, self.data
+        d.qpos[:] = qpos
+        d.qvel[:] = 0.0
+        mujoco.mj_forward(m, d)
+        return d.qfrc_passive + d.qfrc_actuator - d.qfrc_bias + applied
+
+    def _applied(self, force_world):
+        d = self.data
+        mujoco.mj_kinematics(self.model, d)
+        mujoco.mj_comPos(self.model, d)
+        out = np.zeros(self.model.nv)
+        if np.any(force_world):
+            point = d.site_xpos[self.tip_site].copy()
+            mujoco.mj_applyFT(self.model, d, force_world, np.zeros(3), point, self.tip_body, out)
+        return out
+
+    def solve(self, pressures_Pa, force_base, warm: bool = False, settle_s: float = 1.5, tol_N: float = 1e-8):
+        """Rest state under ``pressures_Pa`` and a tip force (base frame), from rest (or with
+        ``warm`` from the last rest state found); returns whether the Newton iteration converged
+        (the state is left in ``self.data``)."""
+        m, d = self.model, self.data
+        if not warm:
+            self.warm = None
+        d.ctrl[:] = pressures_Pa
+        d.act[m.actuator_actadr[self.lagged]] = d.ctrl[self.lagged]
+        R = d.xmat[self.base].reshape(3, 3) if self.warm is not None else None
+        if self.warm is None:
+            mujoco.mj_resetData(m, d)
+            d.ctrl[:] = pressures_Pa
+            d.act[m.actuator_actadr[self.lagged]] = d.ctrl[self.lagged]
+            mujoco.mj_forward(m, d)
+            R = d.xmat[self.base].reshape(3, 3).copy()
+        force_world = R @ np.asarray(force_base, dtype=float)
+        q = self.data.qpos.copy() if self.warm is None else self.warm.copy()
+        if self.warm is None:
+            self._settle(settle_s, force_world)
+            q = d.qpos.copy()
+        converged = self._newton(q, force_world, tol_N)
+        if not converged:  # far from the last rest state: settle from rest and try again
+            mujoco.mj_resetData(m, d)
+            d.ctrl[:] = pressures_Pa
+            d.act[m.actuator_actadr[self.lagged]] = d.ctrl[self.lagged]
+            self._settle(settle_s, force_world)
+            converged = self._newton(d.qpos.copy(), force_world, tol_N)
+        self.warm = d.qpos.copy() if converged else None
+        return converged
+
+    def _settle(self, seconds, force_world):
+        m, d = self.model, self.data
+        for _ in range(int(round(seconds / m.opt.timestep))):
+            d.qfrc_applied[:] = self._applied(force_world)
+            mujoco.mj_step(m, d)
+        if not np.all(np.isfinite(d.qpos)):
+            raise FloatingPointError("suite statics: the arm's state is not finite while settling")
+
+    def _newton(self, q, force_world, tol_N, iterations: int = 30):
+        m = self.model
+        self.data.qpos[:] = q
+        applied = self._applied(force_world)
+        r = self._residual(q, applied)
+        h = 1e-7
+        for _ in range(iterations):
+            if np.max(np.abs(r)) < tol_N:
+                break
+            K = np.empty((m.nv, m.nv))
+            for i in range(m.nv):
+                probe = q.copy()
+                probe[i] += h
+                self.data.qpos[:] = probe
+                K[:, i] = (self._residual(probe, self._applied(force_world)) - r) / h
+            step = np.linalg.lstsq(K, -r, rcond=None)[0]
+            for scale in (1.0, 0.5, 0.25, 0.1, 0.03):
+                trial_q = q + scale * step
+                self.data.qpos[:] = trial_q
+                trial = self._residual(trial_q, self._applied(force_world))
+                if np.linalg.norm(trial) < np.linalg.norm(r):
+                    q, r = trial_q, trial
+                    break
+            else:
+                break
+        self.data.qpos[:] = q
+        self._residual(q, self._applied(force_world))
+        return bool(np.max(np.abs(r)) < tol_N)
+
+    def tip_and_lengths(self):
+        """Tip (base frame) and section backbone lengths of the current state."""
+        d = self.data
+        p0, R0 = d.xpos[self.base], d.xmat[self.base].reshape(3, 3)
+        tip = R0.T @ (d.site_xpos[self.tip_site] - p0)
+        lengths = np.array(
+            [
+                sum(np.linalg.norm(d.xpos[b] - d.xpos[a]) for a, b in zip(chain[:-1], chain[1:]))
+                for chain in self.chains
+            ]
+        )
+        return tip, lengths
+
+
+def _section_chains(model) -> list[list[int]]:
+    """Per section, body ids base plate, then disks ``s{j}d{k}`` in order (the backbone)."""
+    import re
+
+    pattern = re.compile(r"^s(\d+)d(\d+)$")
+    disks: dict[int, dict[int, int]] = {}
+    for b in range(model.nbody):
+        match = pattern.match(model.body(b).name)
+        if match:
+            disks.setdefault(int(match[1]), {})[int(match[2])] = b
+    chains, start = [], model.body("base").id
+    for j in sorted(disks):
+        chain = [start] + [disks[j][k] for k in sorted(disks[j])]
+        chains.append(chain)
+        start = chain[-1]
+    return chains
+
+
+_STATICS: dict = {}
+
+
+def _statics(spec: arm_builder.ArmSpec) -> _Statics:
+    key = replace(spec, payload_kg=0.0)
+    if key not in _STATICS:
+        if len(_STATICS) > 8:
+            _STATICS.clear()
+        _STATICS[key] = _Statics(key)
+    return _STATICS[key]
+
+
 def reference_tip(
     spec: arm_builder.ArmSpec,
     pressures_Pa,
     payload_kg: float = 0.0,
     tip_force_N=(0.0, 0.0, 0.0),
-    initial=None,
+    warm: bool = False,
 ):
     """Tip position (base frame, m) of the arm at rest under ``pressures_Pa`` (one per muscle,
-    base section first) by the reference statics, with the arm's own weight, a payload at the
-    tip and a tip force (base frame). Returns ``(tip, warm_start)``; pass ``warm_start`` back as
-    ``initial`` to speed up a nearby solve."""
+    base section first), with the arm's own weight, a payload of ``payload_kg`` at the tip and a
+    tip force (base frame). Returns ``(tip, section_lengths_m)`` (each section's backbone: the
+    polyline through its plates, as :meth:`EfamPhysics.section_lengths` measures it). Each solve
+    starts from the model at rest (a pure function of its inputs); ``warm=True`` starts from the
+    previous solve's rest state instead (faster for a sequence of nearby solves that itself
+    began cold).
+
+    The suite's statics is the domain's own MuJoCo model held at rest (:class:`_Statics`): every
+    target is then reachable by the simulated arm, and a solve takes milliseconds (the
+    continuum reference, :func:`continuum_tip`, takes 0.5-10 s; its distance to this one is
+    stated in docs/suite.md)."""
+    statics_ = _statics(spec)
+    force = np.asarray(tip_force_N, dtype=float) + float(payload_kg) * arm_builder.gravity_in_base(spec)
+    if not statics_.solve(np.asarray(pressures_Pa, dtype=float), force, warm=warm):
+        raise RuntimeError(f"suite statics: no rest state found for pressures {np.round(pressures_Pa, 1)} Pa")
+    return statics_.tip_and_lengths()
+
+
+def continuum_tip(spec: arm_builder.ArmSpec, pressures_Pa, payload_kg: float = 0.0) -> np.ndarray:
+    """Tip (base frame, m) by the continuum (Kirchhoff rod) reference of :mod:`efam_mujoco.arm`:
+    independent of MuJoCo and of the disk count, slow (seconds for the 3-section arm)."""
     pressures = np.asarray(pressures_Pa, dtype=float)
     counts = np.cumsum([len(s.muscles) for s in spec.sections])[:-1]
-    masses = list(arm_builder.point_masses(spec))
-    if payload_kg > 0:
-        masses.append(statics.PointMass(len(spec.sections) - 1, 1.0, float(payload_kg)))
-    state = statics.solve_arm(
-        spec.sections,
-        np.split(pressures, counts),
-        tip_force_N=tip_force_N,
-        gravity_m_s2=arm_builder.gravity_in_base(spec),
-        point_masses=masses,
-        initial=initial,
+    state = arm_builder.solve_arm_spec(
+        replace(spec, payload_kg=float(payload_kg)), np.split(pressures, counts)
     )
-    warm = np.concatenate([[sec.arc_length_m, *sec.curvature_xy_per_m] for sec in state.sections])
-    return np.asarray(state.tip_position_m, dtype=float), warm
+    return np.asarray(state.tip_position_m, dtype=float)
 
 
 # ----------------------------------------------------- unloaded constant-curvature geometry

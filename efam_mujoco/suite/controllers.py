@@ -91,13 +91,14 @@ def inverse_statics(
     redundancy). Stops within ``tolerance_m`` of the target."""
     target = np.asarray(target_in_base, dtype=float)
     seed = cc_arc_pressures(spec, target)
-    warm = {"initial": cc_arc_shape(spec, target).ravel()}  # the statics solve starts on the arc
 
-    def tip(u):
-        position, warm["initial"] = arm_glue.reference_tip(
-            spec, u * spec.max_pressure_Pa, payload_kg=payload_kg, initial=warm["initial"]
-        )
-        return position
+    calls = []
+
+    def tip(u):  # the first solve from rest, the others from the previous rest state
+        calls.append(None)
+        return arm_glue.reference_tip(
+            spec, u * spec.max_pressure_Pa, payload_kg=payload_kg, warm=len(calls) > 1
+        )[0]
 
     u = np.clip(seed, 0.0, 1.0)
     x = tip(u)

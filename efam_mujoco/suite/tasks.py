@@ -114,14 +114,14 @@ class Track(Reach):
         ]
         direction = self.random.choice([-1.0, 1.0])
         phases = 2 * math.pi * np.arange(self.LOOP_POINTS) / self.LOOP_POINTS
-        loop, warm = [], None
-        for phase in phases:
+        loop = []
+        for index, phase in enumerate(phases):
             pressures = []
             for (s, kx, ky), section in zip(shapes, sections):
                 c, si = math.cos(direction * phase), math.sin(direction * phase)
                 rotated = (s, c * kx - si * ky, si * kx + c * ky)
                 pressures.append(_shape_pressures(section, rotated, self.arm_spec.max_pressure_Pa))
-            tip, warm = arm_glue.reference_tip(self.arm_spec, np.concatenate(pressures), initial=warm)
+            tip, _ = arm_glue.reference_tip(self.arm_spec, np.concatenate(pressures), warm=index > 0)
             loop.append(tip)
         self._coefficients = _fourier_fit(phases, np.array(loop), self.HARMONICS)
         # the same series in the world frame, as plain floats: evaluated every control step
@@ -219,8 +219,8 @@ class Extend(common.EfamTask):
         lo, hi = self.limits.pressure_range
         counts = [len(s.muscles) for s in self.arm_spec.sections]
         fractions = np.concatenate([np.full(n, self.random.uniform(lo, hi)) for n in counts])
-        _, warm = arm_glue.reference_tip(self.arm_spec, fractions * self.arm_spec.max_pressure_Pa)
-        self.target_lengths = np.asarray(warm[0::3], dtype=float)
+        _, lengths = arm_glue.reference_tip(self.arm_spec, fractions * self.arm_spec.max_pressure_Pa)
+        self.target_lengths = np.asarray(lengths, dtype=float)
         physics.set_target_position(physics.to_world([0.0, 0.0, float(self.target_lengths.sum())]))
 
     def get_observation(self, physics):
