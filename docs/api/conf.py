@@ -16,7 +16,8 @@ napoleon_google_docstring = True
 napoleon_numpy_docstring = True
 default_role = "code"  # `x` in a docstring is code, as in the Markdown docs
 nitpicky = False
-suppress_warnings = ["autodoc.import_object"]
+# ref.python: short names (name, sections, effects) exist in several modules; the ambiguity is harmless
+suppress_warnings = ["autodoc.import_object", "ref.python"]
 html_theme = "alabaster"
 html_static_path = []
 exclude_patterns = ["_build"]

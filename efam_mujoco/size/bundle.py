@@ -6,20 +6,20 @@ This is the only module of ``efam size`` that knows the arm API (``arm.SectionSp
 ``arm.continuum.solve_arm_spec``, the Kirchhoff-rod continuum reference with the section's own
 weight and the payload).
 
-Quantities (all at the request's pressure P; gravity off unless stated):
+Quantities (all at the request's pressure P; gravity off unless stated)::
 
-``tip_force_N``       the section held at its resting length (``hold_tip``): the sum of the
-                      muscles' pushes, M x Eq. 9 (reference) beside MuJoCo's actuator forces.
-``stroke``            all muscles at P: the section's extension as a fraction of its resting length.
-``bend_range_deg``    reference only: muscle 1 vented (0 Pa), the others at P: the angle the tip
-                      turns through, the largest single-muscle bend the pressure budget gives (with
-                      three muscles each sits at its own free length, so it is geometric and can
-                      exceed what the disks allow; MuJoCo's links stop at 60 deg each).
-``bend_deg``          verified bend: muscle 1 at the pressure ``bend_check_Pa`` at which the
-                      reference turns 90 deg (or vented, when the full range is below 90 deg),
-                      reference beside MuJoCo.
-``tip_deflection_m``  the section horizontal, all muscles at P, gravity on with the payload at the
-                      tip: how far the tip sits from where it would be without gravity.
+    ``tip_force_N``       the section held at its resting length (``hold_tip``): the sum of the
+                          muscles' pushes, M x Eq. 9 (reference) beside MuJoCo's actuator forces.
+    ``stroke``            all muscles at P: the section's extension as a fraction of its resting length.
+    ``bend_range_deg``    reference only: muscle 1 vented (0 Pa), the others at P: the angle the tip
+                          turns through, the largest single-muscle bend the pressure budget gives (with
+                          three muscles each sits at its own free length, so it is geometric and can
+                          exceed what the disks allow; MuJoCo's links stop at 60 deg each).
+    ``bend_deg``          verified bend: muscle 1 at the pressure ``bend_check_Pa`` at which the
+                          reference turns 90 deg (or vented, when the full range is below 90 deg),
+                          reference beside MuJoCo.
+    ``tip_deflection_m``  the section horizontal, all muscles at P, gravity on with the payload at the
+                          tip: how far the tip sits from where it would be without gravity.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .. import arm
-from ..muscle import Muscle
 from ..arm.continuum import solve_arm_spec
+from ..muscle import Muscle
 from ..statics import StaticsError
 from .request import Request
 from .verify import Pair

@@ -1,23 +1,23 @@
 """The named constraints a design must meet, each with its value, limit and margin.
 
-Definitions (docs/sizing.md has the derivations):
+Definitions (docs/sizing.md has the derivations)::
 
-``force_at_stroke``  push(P, L_rest (1 + stroke)) >= force: the muscle, extended by the stroke at
-                     the pressure, still pushes the required force. With force 0 this is a free
-                     stroke, and the margin is in stroke: free_stroke / stroke - 1.
-``blocked_force``    push(P, L_rest) (Eq. 9) >= the requested blocked force (when one is asked).
-``length_range``     the required length and the free length at P lie inside the model's
-                     admissible range (threads inextensible, bladder fits: ``Muscle.max_length_m``),
-                     and L_rest >= min_aspect_ratio x D_rest (shorter muscles are mostly end region).
-``bladder_strain``   the largest |strain| (Eqs. 12-13) between rest and the longest length in
-                     service <= latex elongation at break / safety factor.
-``pressure_rating``  P <= the lowest known rating of the parts (n/a where none is known).
-``drucker``          d sigma/d eps > 0 over the design's strain range, at P = 0 (the worst).
-``buckling``         unguided: blocked force <= Euler load pi^2 E I / (K L_rest)^2, E the law's
-                     tangent modulus at zero strain and P, I the bladder wall's (n/a when guided).
-``sleeve_fit``       sleeve min diameter <= tube outer diameter, resting diameter <= sleeve max.
-``sleeve_gather``    L_45 / L_rest <= max_gather_ratio (the sleeve that must be gathered on).
-``max_diameter``     D_rest <= the requested maximum (when one is asked).
+    ``force_at_stroke``  push(P, L_rest (1 + stroke)) >= force: the muscle, extended by the stroke at
+                         the pressure, still pushes the required force. With force 0 this is a free
+                         stroke, and the margin is in stroke: free_stroke / stroke - 1.
+    ``blocked_force``    push(P, L_rest) (Eq. 9) >= the requested blocked force (when one is asked).
+    ``length_range``     the required length and the free length at P lie inside the model's
+                         admissible range (threads inextensible, bladder fits: ``Muscle.max_length_m``),
+                         and L_rest >= min_aspect_ratio x D_rest (shorter muscles are mostly end region).
+    ``bladder_strain``   the largest |strain| (Eqs. 12-13) between rest and the longest length in
+                         service <= latex elongation at break / safety factor.
+    ``pressure_rating``  P <= the lowest known rating of the parts (n/a where none is known).
+    ``drucker``          d sigma/d eps > 0 over the design's strain range, at P = 0 (the worst).
+    ``buckling``         unguided: blocked force <= Euler load pi^2 E I / (K L_rest)^2, E the law's
+                         tangent modulus at zero strain and P, I the bladder wall's (n/a when guided).
+    ``sleeve_fit``       sleeve min diameter <= tube outer diameter, resting diameter <= sleeve max.
+    ``sleeve_gather``    L_45 / L_rest <= max_gather_ratio (the sleeve that must be gathered on).
+    ``max_diameter``     D_rest <= the requested maximum (when one is asked).
 
 A margin is (capacity - demand) / demand: positive passes. A constraint without a requirement
 reports its value with status ``n/a``.

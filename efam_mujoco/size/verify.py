@@ -25,7 +25,7 @@ class Pair:
 
     @property
     def relative_difference(self) -> float:
-        """|MuJoCo - analytic| / |analytic|."""
+        """Relative difference: abs(MuJoCo - analytic) / abs(analytic)."""
         scale = max(abs(self.analytic), 1e-12)
         return abs(self.mujoco - self.analytic) / scale
 
