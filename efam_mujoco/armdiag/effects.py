@@ -29,11 +29,13 @@ class Param:
     grid: tuple = ()
 
     def to_unit(self, v: float) -> float:
+        """``v`` mapped onto [0, 1] (log or linear between the bounds)."""
         if self.log:
             return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
         return (v - self.lo) / (self.hi - self.lo)
 
     def from_unit(self, u: float) -> float:
+        """The value at ``u`` in [0, 1] (clipped), inverse of :meth:`to_unit`."""
         u = min(1.0, max(0.0, u))
         if self.log:
             return math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo)))
@@ -119,8 +121,10 @@ LIBRARY: tuple[ArmEffect, ...] = (
     ),
     ArmEffect(
         "muscle_friction", "friction in the muscles (the muscle-level friction term on every muscle)",
-        "efam.muscle effects=friction, friction.f0_N (play operator, slip strain 3e-3)",
-        (Param("f0_N", 0.2, 60.0, True, grid=(1.0, 5.0, 20.0)),), switch_on="MJCF: efam.muscle config keys",
+        "dry friction force f0 in every muscle; segmented arm: joint frictionloss = f0 sum_i |dL_i/dq| "
+        "(n f0 per extension slide, f0 sum |y_i| per bend hinge); unsegmented: efam.muscle friction.f0_N",
+        (Param("f0_N", 0.2, 60.0, True, grid=(1.0, 5.0, 20.0)),),
+        switch_on="MJCF: joint frictionloss (segmented) or efam.muscle config keys (unsegmented)",
     ),
     ArmEffect(
         "cross_talk", "the pressure of one muscle leaks into its neighbours' supply",

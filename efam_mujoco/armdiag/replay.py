@@ -4,8 +4,21 @@ A model variant is the arm model plus a :class:`Knobs` setting: the calibration 
 has (per-muscle pressure gain and offset, damping, pressure lag) and the effect terms of the
 library (tip payload, base tilt, compliant mount, muscle friction, pressure cross-talk). Every
 knob is applied as a post-build edit of the :class:`mujoco.MjSpec` (a body, a joint, a quaternion,
-a plugin config key, damping, ``dynprm``) or as the command-to-ctrl map, so the arm builder's
-internals are never touched. ``Replayer.tips`` rolls a batch of variants out in one call
+joint friction, damping, ``dynprm``) or as the command-to-ctrl map, so the arm builder's
+internals are never touched.
+
+Muscle friction, two forms. The plugin refuses effect terms on segmented muscles (the default
+physical arm), so there the muscle's dry friction force ``f0`` is lifted to the arm: every joint
+of the links gets ``frictionloss = f0 * sum_i |dL_i/dq|`` (L_i: muscle i's length at the rest
+pose), i.e. ``n f0`` on each extension slide and ``f0 sum_i |y_i|`` (``|x_i|``) on each bend hinge
+-- the friction force the muscles in parallel exert on that joint. The links are in series, so
+each carries the full muscle friction force, whatever the number of disks D (per unit length the
+friction work grows with the length, as it does in a real muscle). MuJoCo's frictionloss is a
+dry-friction constraint (no pre-sliding width), made near-hard (``solimpfriction`` 0.9999,
+``solreffriction`` two time steps) because at MuJoCo's default impedance the light links creep
+through it. Only an unsegmented model (one tendon per muscle,
+``mode="pcc"`` or a plain MJCF) gets the plugin's muscle-level friction term, config keys
+``effects=friction, friction.f0_N``. ``Replayer.tips`` rolls a batch of variants out in one call
 (threads where there are cores) and returns the tip at the recording's sample times.
 
 Timing: the arm starts at rest under the first command (``settle_s`` of simulated time at the
@@ -32,6 +45,10 @@ CTRL_GAIN, CTRL_OFFSET, CTRL_MIX = "efam_ctrl_gain", "efam_ctrl_offset_Pa", "efa
 #: friction term lifted from the muscle level: fixed pre-sliding widths, fitted amplitude
 FRICTION_SLIP_STRAIN = 3e-3
 FRICTION_SLIP_KPA = 6.0
+#: impedance of the joint form of muscle friction: MuJoCo's default soft frictionloss lets the light
+#: links creep through it within a few steps (no visible friction), so it is made near-hard
+FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+FRICTION_SOLREF_STEPS = 2.0  # solref time constant, in time steps (the stiffest MuJoCo advises)
 
 
 @dataclass(frozen=True)
@@ -48,7 +65,7 @@ class Knobs:
     tilt_rad: tuple = (0.0, 0.0)  # base turned about the world x, then y axis
     mount_stiffness_N_m_per_rad: float = 0.0  # 0: rigid mount
     mount_damping_N_m_s_per_rad: float = 0.0
-    friction_N: float = 0.0  # efam.muscle friction f0_N on every muscle
+    friction_N: float = 0.0  # muscle dry friction f0 on every muscle (joint or plugin form)
 
     def structure(self) -> tuple:
         """Variants with the same structure can share one rollout batch."""
@@ -90,6 +107,13 @@ class Replayer:
         self.dt = float(base.opt.timestep)
         self.max_Pa = base.actuator_ctrlrange[:, 1].copy()
         self._damping0 = {j.name: j.damping for j in self.spec.joints}
+        self._friction0 = {j.name: j.frictionloss for j in self.spec.joints}
+        self.segmented = any(
+            int(float(dict(p.config).get("segments", 1))) > 1
+            for p in self.spec.plugins
+            if p.plugin_name == plugin.PLUGIN_NAME
+        )
+        self.friction_coefficients = muscle_joint_coefficients(base)
         self.nominal = Knobs(
             gain=(1.0,) * base.nu, offset_Pa=(0.0,) * base.nu, lag_s=tuple(base.actuator_dynprm[:, 0])
         )
@@ -149,7 +173,15 @@ class Replayer:
                                damping=k.mount_damping_N_m_s_per_rad, armature=1e-4)  # fmt: skip
             base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.005, 0, 0], contype=0, conaffinity=0,
                           group=2, mass=1e-3)  # fmt: skip
-        if k.friction_N > 0:
+        if k.friction_N > 0 and self.segmented:
+            for j in spec.joints:
+                if j.name in self.friction_coefficients:
+                    j.frictionloss = (
+                        self._friction0[j.name] + k.friction_N * self.friction_coefficients[j.name]
+                    )
+                    j.solref_friction = [FRICTION_SOLREF_STEPS * self.dt, 1.0]
+                    j.solimp_friction = list(FRICTION_SOLIMP)
+        elif k.friction_N > 0:
             for instance in spec.plugins:
                 if instance.plugin_name == plugin.PLUGIN_NAME:
                     cfg = dict(instance.config)
@@ -159,6 +191,7 @@ class Replayer:
 
     @staticmethod
     def friction_values(f0_N: float) -> dict:
+        """The plugin's friction config (unsegmented muscles): amplitude f0, fixed slip widths."""
         return {"f0_N": f0_N, "f1_N_per_MPa": 0.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
                 "slip_strain": FRICTION_SLIP_STRAIN, "slip_kPa": FRICTION_SLIP_KPA}  # fmt: skip
 
@@ -223,6 +256,28 @@ class Replayer:
         tips = sensordata[:, :, adr : adr + 3].copy()
         tips[bad] = 1e3  # a variant that blew up fits nothing
         return tips
+
+
+def muscle_joint_coefficients(model: mujoco.MjModel) -> dict[str, float]:
+    """``sum_i |dL_i/dq|`` per slide/hinge joint at the rest pose (L_i: actuator i's length): the
+    generalized force of a unit friction force in every muscle. Central differences of the
+    actuator lengths (the transmission is linear in q, so they are exact)."""
+    data = mujoco.MjData(model)
+    out = {}
+    h = 1e-6
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE)):
+            continue
+        lengths = []
+        for sign in (1.0, -1.0):
+            data.qpos[:] = model.qpos0
+            data.qpos[model.jnt_qposadr[j]] += sign * h
+            mujoco.mj_fwdPosition(model, data)
+            lengths.append(data.actuator_length.copy())
+        coefficient = float(np.abs((lengths[0] - lengths[1]) / (2 * h)).sum())
+        if coefficient > 0:
+            out[model.joint(j).name] = coefficient
+    return out
 
 
 def with_values(k: Knobs, **changes) -> Knobs:

@@ -5,7 +5,7 @@ with the arm)::
 
     {"format": "efam_mujoco.arm_spec/1", "name": "arm_1x3", "orientation": "upright",
      "pressure_tau_s": 0.05, "max_pressure_Pa": 517106.8, "payload_kg": 0.0, "gravity": true,
-     "timestep_s": 0.001, "axial_damping_N_s_per_m": 40.0, "bend_damping_N_m_s_per_rad": 0.3,
+     "timestep_s": 0.001, "axial_viscosity_N_s": 6.8, "bend_viscosity_N_m2_s": 0.05, "mode": "segmented",
      "sections": [{"radius_m": 0.02, "angles_deg": [0, 120, 240], "disks": 4,
                    "end_mass_kg": null, "body_mass_kg": null, "plate_mass_kg": 0.0,
                    "muscles": [<muscle document>, ...]}]}

@@ -133,6 +133,9 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
         model.dof_frictionloss[:] = np.where(
             model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_SLIDE, tp["slide_N"], tp["hinge_N_m"]
         )
+        # near-hard (at the default impedance the light links of the segmented arm creep through it)
+        model.dof_solimp[:, :2] = 0.9999
+        model.dof_solref[:, 0] = 2 * dt
     # -- commands (open loop now; closed loop inside the step loop)
     closed = protocol == "closed_loop"
     if not closed:
