@@ -6,15 +6,15 @@ Model-based reach (:class:`InverseStaticsController`):
 1. **Feed-forward, inverse statics.** The target (base frame) is first met by one constant-
    curvature arc through it (every section the same arc length, bend and direction: closed
    form), whose muscle lengths give unloaded pressures through the inverse of the muscles' free
-   length. These seed a bounded Gauss-Newton solve (Broyden updates) of the reference statics (the arm's own
-   weight included; no payload: the controller does not know it) for pressure fractions
+   length. These seed a bounded Gauss-Newton solve (Broyden updates) of the suite's statics
+   (:func:`.arm_glue.reference_tip`: the domain's model at rest; the arm's own weight included; no payload: the controller does not know it) for pressure fractions
    ``u*`` whose rest tip is the target, with a small pull towards the seed that settles the
    redundancy of a multi-section arm. The same solve gives the Jacobian ``J`` of the rest tip
    with respect to the fractions.
 2. **Feedback.** Each control step, with the tip error ``e`` (base frame) and its integral,
    ``u = u* + J+ (kp e + ki int e dt)``, J+ the damped pseudo-inverse, clipped to [0, 1] (the
    integral stops growing while the command is clipped). The integral removes what the
-   reference gets wrong: the discretised arm against the continuum, an unknown payload.
+   statics does not know (an unknown payload) and the slow creep of a lightly damped arm.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def cc_arc_pressures(spec, target_in_base) -> np.ndarray:
 
 @dataclass(frozen=True)
 class InverseStatics:
-    """Pressure fractions whose rest tip (reference statics) is a target."""
+    """Pressure fractions whose rest tip (the suite's statics) is a target."""
 
     fractions: np.ndarray  # (muscles,)
     jacobian_m: np.ndarray  # (3, muscles): d tip / d fraction, base frame
@@ -83,7 +83,7 @@ def inverse_statics(
     max_iterations: int = 20,
     regularisation: float = 1e-4,
 ) -> InverseStatics:
-    """Solve the reference statics for pressure fractions in [0, 1] that put the rest tip on
+    """Solve the suite's statics for pressure fractions in [0, 1] that put the rest tip on
     the target: Gauss-Newton from :func:`cc_arc_pressures` with one finite-difference Jacobian
     and Broyden updates after it (each evaluation is a statics solve, the costly part),
     minimising ``|tip(u) - target|^2 + regularisation^2 |u - seed|^2`` (m^2): the pull to the

@@ -1,7 +1,7 @@
 """The suite's tasks, shared by every domain: reach, track, extend, push, reach_payload.
 
 Rewards are in [0, 1], from :func:`dm_control.utils.rewards.tolerance`. Targets come from the
-reachable workspace (:mod:`.workspace`): each is where the reference statics puts the arm at
+reachable workspace (:mod:`.workspace`): each is where the suite's statics puts the arm at
 rest under admissible pressures, so every episode is solvable.
 """
 
@@ -86,7 +86,7 @@ class Track(Reach):
     """Follow a target that circles through the workspace.
 
     Each episode draws a reachable shape of bend theta and direction phi per section; the target
-    is where the reference statics puts the tip as every section's bend direction turns by
+    is where the suite's statics puts the tip as every section's bend direction turns by
     2 pi t / T (period T in ``period_range_s``): a closed loop around the arm's axis, sampled
     at ``LOOP_POINTS`` shapes and interpolated by a Fourier series. Reward as in
     :class:`Reach`, at every step.
@@ -204,7 +204,7 @@ def _fourier_eval(coefficients, phase, omega):
 class Extend(common.EfamTask):
     """Hold every section at a target length (its backbone length).
 
-    Targets are the section lengths at which the reference statics holds the arm with equal
+    Targets are the section lengths at which the suite's statics holds the arm with equal
     pressures in each section (a fraction drawn per section from the workspace's pressure
     range). Reward: the mean over sections of 1 within ``tolerance_m`` of the target, falling
     off to 0.1 at 10 tolerances further.

@@ -9,7 +9,7 @@ pressure, and the pressures are the inverse of the free length at ``L_i``.
 
 The workspace is sampled in that shape space (arc length uniform between the free lengths of
 the pressure range, bend uniform over the disk of bends up to ``max_bend_deg``, direction
-uniform), the pressures follow, and the reference statics (the arm's own weight, a payload)
+uniform), the pressures follow, and the suite's statics (the arm's own weight, a payload)
 gives the tip where the arm comes to rest under them. Every sample is therefore a target the
 arm reaches at rest with admissible pressures, by the reference; the bend cap keeps targets
 away from the folded-over shapes where the muscles would touch each other and where the
@@ -116,7 +116,7 @@ class Workspace:
 
 
 def compute_workspace(spec, samples: int = 200, seed: int = 0, limits: WorkspaceLimits = WorkspaceLimits()):
-    """Sample the reachable workspace of ``spec`` (reference statics with gravity)."""
+    """Sample the reachable workspace of ``spec`` (the suite's statics with gravity)."""
     if samples < 1:
         raise ValueError(f"workspace: samples must be >= 1, got {samples}")
     random = np.random.RandomState(seed)
