@@ -6,7 +6,8 @@ protocol (steps, ramps, sinusoids, random sequences, a closed-loop tip controlle
 tip at 30-200 Hz with 0.2-1 mm marker noise and dropouts in bursts. The diagnosis sees only the
 recording and the nominal arm model.
 
-Arms: 1 section of 3 FAM1 muscles upright (4 disks) and 2 sections hanging (2 disks per section),
+Arms (the physical, segmented arm; few disks for speed, the default is 16): 1 section of 3 FAM1
+muscles upright (4 disks) and 2 sections hanging (2 disks per section),
 both at a 4 ms timestep; the timing case is a 3-section hanging arm (2 disks per section), 60 s at
 100 Hz, on one thread, CPU time of this process.
 
@@ -57,7 +58,7 @@ FIGURES = ROOT / "docs" / "figures"
 def arms() -> dict:
     """The benchmark's arm models (nominal specs)."""
     return {
-        "1x3": arm.ArmSpec(sections=(arm.paper_section(),), timestep_s=4e-3, name="arm_1x3"),
+        "1x3": arm.ArmSpec(sections=(arm.paper_section(disks=4),), timestep_s=4e-3, name="arm_1x3"),
         "2x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 2, orientation="hanging", timestep_s=4e-3, name="arm_2x3"),
         "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
     }  # fmt: skip
