@@ -12,8 +12,8 @@ Model-based reach (:class:`InverseStaticsController`):
    redundancy of a multi-section arm. The same solve gives the Jacobian ``J`` of the rest tip
    with respect to the fractions.
 2. **Feedback.** Each control step, with the tip error ``e`` (base frame) and its integral,
-   ``u = u* + J+ (kp e + ki int e dt)``, J+ the damped pseudo-inverse, clipped to [0, 1] (the
-   integral stops growing while the command is clipped). The integral removes what the
+   ``u = u* + a J+ (kp e + ki int e dt)``, J+ the damped pseudo-inverse, the correction
+   shortened (a <= 1) until u is inside [0, 1] (the integral stops growing while a < 1). The integral removes what the
    statics does not know (an unknown payload) and the slow creep of a lightly damped arm.
 """
 
@@ -191,13 +191,22 @@ class InverseStaticsController:
         physics = self.env.physics
         target = physics.to_base(time_step.observation["target_position"])
         error = target - physics.to_base(time_step.observation["tip_position"])
-        command = self.solution.fractions + self._pinv @ (
-            self.kp * error + self.ki * (self._integral + error * self.dt)
-        )
-        clipped = np.clip(command, 0.0, 1.0)
-        if np.allclose(clipped, command):  # no integration while saturated (anti-windup)
+        feedforward = self.solution.fractions
+        correction = self._pinv @ (self.kp * error + self.ki * (self._integral + error * self.dt))
+        # shorten the correction until the command is inside [0, 1] (clipping muscle by muscle
+        # would drop its differential part: all muscles at the rail straighten the arm); a
+        # muscle whose feed-forward is already on a bound is clipped instead
+        scale = 1.0
+        for u, d in zip(feedforward.tolist(), correction.tolist()):
+            if (u >= 1.0 and d > 0) or (u <= 0.0 and d < 0):
+                continue
+            if u + scale * d > 1.0:
+                scale = (1.0 - u) / d
+            elif u + scale * d < 0.0:
+                scale = -u / d
+        if scale >= 1.0:  # no integration while saturated (anti-windup)
             self._integral += error * self.dt
-        return clipped
+        return np.clip(feedforward + max(scale, 0.0) * correction, 0.0, 1.0)
 
 
 # ------------------------------------------------------------------------------- episodes
