@@ -73,9 +73,11 @@ class ArmDiagnosis:
 
     @property
     def names(self) -> list[str]:
+        """Names of the effects the diagnosis kept."""
         return [e["name"] for e in self.effects]
 
     def to_json(self) -> dict:
+        """The diagnosis as plain JSON types (the muscle diagnosis keys, tip errors in m, plus ``muscle``)."""
         keys = (
             "effects", "rms_before_m", "rms_after_m", "heldout_rms_before_m", "heldout_rms_after_m",
             "heldout_rms_nominal_m", "noise_m", "located", "candidates", "decisions", "refit",

@@ -7,19 +7,19 @@ One file = one :class:`ArmRecording`::
     0.00,100,100,100,0.0012,-0.0004,0.2051
     ...
 
-==================  ======================================================================
-column              meaning
-==================  ======================================================================
-``time_<unit>``     sample time (s, ms, min), strictly increasing
-``p_<muscle>_<u>``  commanded gauge pressure of muscle ``<muscle>`` (names from the arm
-                    model's actuators), any pressure unit (Pa, kPa, MPa, bar, psi); one per
-                    muscle, all required
-``pm_<muscle>_<u>`` measured pressure at the muscle (optional)
-``tip_x_<u>`` ...   tip marker position in the model's world frame (m, cm, mm, in); an
-                    empty cell is a marker dropout (kept as NaN, not fitted)
-``tip_q{w,x,y,z}``  tip orientation quaternion (optional, unitless)
-``marker<k>_x_<u>`` intermediate markers (optional, read and kept)
-==================  ======================================================================
+====================  ======================================================================
+column                meaning
+====================  ======================================================================
+``time_<unit>``       sample time (s, ms, min), strictly increasing
+``p_<muscle>_<u>``    commanded gauge pressure of muscle ``<muscle>`` (names from the arm
+                      model's actuators), any pressure unit (Pa, kPa, MPa, bar, psi); one per
+                      muscle, all required
+``pm_<muscle>_<u>``   measured pressure at the muscle (optional)
+``tip_x_<u>`` ...     tip marker position in the model's world frame (m, cm, mm, in); an
+                      empty cell is a marker dropout (kept as NaN, not fitted)
+``tip_q{w,x,y,z}``    tip orientation quaternion (optional, unitless)
+``marker<k>_x_<u>``   intermediate markers (optional, read and kept)
+====================  ======================================================================
 
 The arm is taken to be at rest under the first row's commands at the first time. Bad input
 (unknown column, unknown unit, a missing muscle, a non-numeric or non-finite value, a
@@ -68,6 +68,7 @@ class ArmRecording:
 
     @property
     def duration_s(self) -> float:
+        """Duration of the recording (s), first to last sample."""
         return float(self.time_s[-1] - self.time_s[0])
 
     @property

@@ -143,6 +143,7 @@ def register_cli(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``efam diagnose-arm`` with parsed arguments; returns the exit status."""
     spec = load_arm_model(args.model)
     muscles = [a.name for a in spec.actuators]
     rec = read_csv(args.recording, muscles)

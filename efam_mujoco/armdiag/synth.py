@@ -1,6 +1,6 @@
 """Blind test recordings: the arm model with one concealed effect, commands as a lab sends them.
 
-The concealed effects are written here independently of the library (:mod:`.effects`,
+The concealed effects are written here independently of the library (:mod:`efam_mujoco.armdiag.effects`,
 :mod:`.replay`) and in other functional forms: a payload with an off-axis centre of mass added to
 the tip body's inertia, a tilt as a rotated gravity and a rotated marker frame, hinge-only damping, damping along the muscles (tendon damping) or a viscous medium, a second-order lag with a transport delay, a leak with an offset and a
 proportional loss, MuJoCo's dry joint friction, a one-way low-passed cross-talk between two
