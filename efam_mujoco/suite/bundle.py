@@ -1,4 +1,4 @@
-"""Bundle domain: one EFAM section of three FAM1 muscles at 20 mm, standing upright.
+"""Bundle domain: one EFAM section of three FAM1 muscles (18.2 mm from the axis, D = 4 disks), upright.
 
 The section extends under equal pressures (from 0.17 m to about 0.33 m between 0.15 and 0.9 of
 the rated 517 kPa) and bends towards its lower-pressure muscles. Actions: three pressure
