@@ -36,6 +36,7 @@ import numpy as np
 
 from efam_mujoco import suite
 from efam_mujoco.files import write_json_atomic
+from efam_mujoco.progress import progress
 from efam_mujoco.suite import controllers
 
 RESULTS = Path(__file__).resolve().parent / "results" / "suite.json"
@@ -178,7 +179,7 @@ def main(argv=None) -> int:
     ok = True
     if not args.skip_random_steps:
         report["random_steps"] = {}
-        for domain, task in suite.ALL_TASKS:
+        for domain, task in progress(suite.ALL_TASKS, "random steps per task"):
             result = random_steps(domain, task)
             report["random_steps"][f"{domain}-{task}"] = result
             clean = not result["mujoco_warnings"] and result["finite"] and result["rewards_in_0_1"]
@@ -191,7 +192,7 @@ def main(argv=None) -> int:
             )
     if not args.skip_throughput:
         report["throughput"] = {}
-        for domain, task in suite.ALL_TASKS:
+        for domain, task in progress(suite.ALL_TASKS, "throughput per task"):
             steps = args.steps if domain == "bundle" else args.steps // 5
             result = throughput(domain, task, steps)
             report["throughput"][f"{domain}-{task}"] = result
@@ -206,12 +207,13 @@ def main(argv=None) -> int:
             )
     if not args.skip_control:
         report["control"] = {"episodes": args.episodes, "seeds": f"0..{args.episodes - 1}"}
-        for domain, task in (
+        evaluated = (
             ("bundle", "reach"),
             ("arm", "reach"),
             ("bundle", "reach_payload"),
             ("arm", "reach_payload"),
-        ):
+        )
+        for domain, task in progress(evaluated, "controller evaluations"):
             result = control(domain, task, args.episodes)
             report["control"][f"{domain}-{task}"] = result
             radius = 0.01 if domain == "bundle" else 0.02
