@@ -59,7 +59,12 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--disks", type=int, default=DEFAULT_DISKS, help=f"spacer disks per section (default {DEFAULT_DISKS})"
     )
-    parser.add_argument("--orientation", choices=sorted(ORIENTATIONS), default="upright")
+    parser.add_argument(
+        "--orientation",
+        choices=sorted(ORIENTATIONS),
+        default="upright",
+        help="how the base is mounted: upright (arm points up), hanging (down) or horizontal",
+    )
     parser.add_argument("--payload-kg", type=float, default=0.0, help="tip payload, kg")
     parser.add_argument("--no-gravity", action="store_true", help="switch gravity off")
     parser.add_argument(
