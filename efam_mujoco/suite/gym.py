@@ -63,6 +63,7 @@ class SuiteEnv(gymnasium.Env):
         return np.concatenate([np.ravel(observation[k]) for k in self.observation_keys]).astype(np.float32)
 
     def reset(self, *, seed=None, options=None):
+        """Start an episode (a seed reloads the task with that seed); returns (observation, info)."""
         super().reset(seed=seed)
         if seed is not None:  # a seeded task: its targets and starts follow the seed
             self.env = load(self.domain, self.task, task_kwargs={**self.task_kwargs, "random": int(seed)})
@@ -70,16 +71,20 @@ class SuiteEnv(gymnasium.Env):
         return self._flat(time_step.observation), {}
 
     def step(self, action):
+        """Apply ``action`` (pressure fractions in [0, 1]) for one control step; returns
+        (observation, reward, terminated, truncated, info) with ``info["success"]``."""
         time_step = self.env.step(np.asarray(action, dtype=np.float64))
         info = {"success": bool(self.env.task.success(self.env.physics))}
         return self._flat(time_step.observation), float(time_step.reward), False, bool(time_step.last()), info
 
     def render(self):
+        """An RGB frame from the named camera when ``render_mode="rgb_array"``, else None."""
         if self.render_mode != "rgb_array":
             return None
         return self.env.physics.render(*self.size, camera_id=self.camera)
 
     def close(self):
+        """Release the dm_control environment."""
         self.env.close()
 
 
