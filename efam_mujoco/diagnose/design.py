@@ -191,17 +191,6 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     )
     p = _Prog(L_lo)
     p.go(2)
-    for k in list(range(1, 9)) + list(range(7, -1, -1)):
-        p.go(0.001, P=P_top * k / 8)
-        p.go(3)
-    out.append(
-        p.done(
-            "staircase_rest",
-            f"pressure staircase 8 steps to {P_top / 1e3:.0f} kPa and down, 3 s holds, at {L_lo * 1e3:.0f} mm",
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
     p.go(0.001, P=P_top / 2)
     p.go(5)
     p.go(stroke, L=L_hi)
