@@ -30,6 +30,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _machine import pin_one_core  # noqa: E402  (bench/, the script's own folder)
 
 from efam_mujoco.calibrate import calibrate, fit_law, paper_baseline, recovery_error, synthesize  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
@@ -40,14 +41,6 @@ from efam_mujoco.stress import LAW_NAMES  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results" / "calibrate.json"
 TRUTH_LAWS = ("linear", "polynomial", "exponential_decay", "exponent")
 SPEED_GOAL_S = 5.0
-
-
-def pin_one_core() -> str:
-    if hasattr(os, "sched_setaffinity"):
-        cpu = min(os.sched_getaffinity(0))
-        os.sched_setaffinity(0, {cpu})
-        return f"cpu {cpu}"
-    return "not pinned (no sched_setaffinity)"
 
 
 def run_case(preset: str, truth_law: str, seed: int) -> dict:

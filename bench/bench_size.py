@@ -25,6 +25,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _machine import pin_one_core  # noqa: E402  (bench/, the script's own folder)
 
 from efam_mujoco import rig  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
@@ -34,14 +35,6 @@ from efam_mujoco.size import Material, Request, load_catalogue, size  # noqa: E4
 RESULTS = Path(__file__).resolve().parent / "results" / "size.json"
 GOAL_S = 10.0
 PSI = 6894.757293168361
-
-
-def pin_one_core() -> str:
-    if hasattr(os, "sched_setaffinity"):
-        cpu = min(os.sched_getaffinity(0))
-        os.sched_setaffinity(0, {cpu})
-        return f"cpu {cpu}"
-    return "not pinned (no sched_setaffinity)"
 
 
 def random_request(rng) -> Request:
