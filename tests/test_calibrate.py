@@ -40,7 +40,7 @@ def test_blocked_force_line_gives_the_dead_band_and_eq9_braid_angle():
     muscle = load_muscle("FAM1")
     recs = synthesize(muscle, noise_N=0.0)
     P, F = blocked_points(pool(recs), muscle.rest_length_m)
-    assert np.allclose(F, muscle.blocked_force(P), rtol=1e-9)  # the held samples are at rest length
+    assert np.allclose(F, muscle.blocked_tension(P), rtol=1e-9)  # the held samples are at rest length
     fit = fit_blocked(P, F, muscle.rest_diameter_m)
     assert fit.deadband_Pa == pytest.approx(muscle.deadband_Pa, rel=1e-9)
     assert fit.theta_rest_deg == pytest.approx(muscle.theta_rest_deg, rel=1e-9)
@@ -49,7 +49,7 @@ def test_blocked_force_line_gives_the_dead_band_and_eq9_braid_angle():
 def test_blocked_force_rejects_an_outlier_like_fam2_at_413_kpa():
     muscle = load_muscle("FAM2")
     P = np.array([103.4, 206.8, 310.3, 413.7, 517.1]) * 1e3
-    F = muscle.blocked_force(P) + np.array([0.3, -0.2, 0.1, 12.0, -0.25])  # 413.7 kPa is off the line
+    F = muscle.blocked_tension(P) + np.array([0.3, -0.2, 0.1, 12.0, -0.25])  # 413.7 kPa is off the line
     fit = fit_blocked(P, F, muscle.rest_diameter_m)
     assert list(fit.inlier) == [True, True, True, False, True]
     assert fit.deadband_Pa == pytest.approx(muscle.deadband_Pa, abs=1.5e3)

@@ -39,7 +39,7 @@ def test_working_bladder_volume_eq8():
 @pytest.mark.parametrize("name", ["fam1", "fam2"])
 def test_blocked_force_about_280N_at_517kPa(name):
     muscle = load_muscle(name)
-    blocked = muscle.blocked_force(75 * PSI)
+    blocked = muscle.blocked_tension(75 * PSI)
     assert blocked < 0  # an EFAM pushes (paper sign: positive pulls)
     assert -blocked == pytest.approx(280.0, rel=0.015)
 
@@ -73,7 +73,7 @@ def test_eq2_at_rest_length_is_gaylord_eq9(law):
     pressures = np.linspace(0, 800e3, 17)
     np.testing.assert_allclose(
         muscle.tension(pressures, muscle.rest_length_m),
-        muscle.blocked_force(pressures),
+        muscle.blocked_tension(pressures),
         rtol=1e-12,
         atol=1e-6,
     )
@@ -84,7 +84,7 @@ def test_eq9_without_dead_band_is_gaylord_eq1():
     theta, D, P = math.radians(muscle.theta_rest_deg), muscle.rest_diameter_m, 400e3
     gaylord = P * math.pi * D**2 / (4 * math.cos(theta) ** 2) * (3 * math.sin(theta) ** 2 - 1)
     no_deadband = Muscle(**{**_constants(muscle), "deadband_Pa": 0.0}, stress=muscle.stress)
-    assert no_deadband.blocked_force(P) == pytest.approx(gaylord, rel=1e-12)
+    assert no_deadband.blocked_tension(P) == pytest.approx(gaylord, rel=1e-12)
 
 
 def test_thread_winds_round_the_resting_cylinder():
@@ -158,13 +158,13 @@ def contractile_muscle(**kw):
 def test_contractile_muscle_pulls_and_shortens():
     muscle = contractile_muscle()
     assert muscle.kind == "contractile"
-    assert muscle.blocked_force(500e3) > 0
+    assert muscle.blocked_tension(500e3) > 0
     assert muscle.free_length(500e3) < muscle.rest_length_m
 
 
 def test_blocked_force_changes_sign_at_35_26_degrees():
-    below = contractile_muscle(theta_rest_deg=35.0).blocked_force(300e3)
-    above = contractile_muscle(theta_rest_deg=35.5).blocked_force(300e3)
+    below = contractile_muscle(theta_rest_deg=35.0).blocked_tension(300e3)
+    above = contractile_muscle(theta_rest_deg=35.5).blocked_tension(300e3)
     assert below < 0 < above
 
 

@@ -19,8 +19,8 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 def test_blocked_force_is_eq9(preset, law):
     muscle = load_muscle(preset, law)
     for p in PAPER_PRESSURES:
-        eq9_push = -muscle.blocked_force(p)
-        assert rig.blocked_force(muscle, p) == pytest.approx(eq9_push, rel=0.005)
+        eq9_push = -muscle.blocked_tension(p)
+        assert rig.blocked_push(muscle, p) == pytest.approx(eq9_push, rel=0.005)
 
 
 @pytest.mark.parametrize("preset", ["FAM1", "FAM2"])
