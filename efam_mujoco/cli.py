@@ -37,37 +37,6 @@ COMMAND_MODULES = (
     "efam_mujoco.armdiag",
 )
 
-#: Input and output arguments of commands whose module does not declare them itself
-#: (``parser.set_defaults(file_inputs=(...), file_outputs=(...))`` declares them in a module).
-DEFAULT_FILE_ARGS = {
-    "arm": {"inputs": ("muscle",), "outputs": ("xml", "json", "models_dir")},
-}
-
-
-def _arm_max_pressure_kPa():
-    """The arm's control range top (its actuators' ctrlrange), read from efam_mujoco.arm."""
-    from . import arm
-
-    value = getattr(arm, "MAX_TESTED_PRESSURE_PA", None)
-    return None if value is None else value / 1e3
-
-
-#: Bounds on the values of commands whose module does not check them itself: a size that can
-#: exhaust the machine, or a control MuJoCo would clamp silently (the analytic column would not).
-#: ``dest: (low, high, unit)``; a callable bound is read when the command runs; a flag the
-#: command does not have is skipped.
-ARGUMENT_BOUNDS = {
-    "arm": {
-        "sections": (1, 20, ""),
-        "muscles_per_section": (3, 24, ""),
-        "disks": (1, 40, ""),
-        "radius_mm": (1.0, 500.0, "mm"),
-        "payload_kg": (0.0, 50.0, "kg"),
-        "pressure_lag_s": (0.0, 10.0, "s"),
-        "pressures_kPa": (0.0, _arm_max_pressure_kPa, "kPa"),
-    },
-}
-
 #: Exit status of a bad input (argparse uses 2 too) and of an interrupted run.
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -140,9 +109,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _file_args(args) -> tuple[dict, dict]:
     """The command's input and output paths, keyed by the flag a user typed."""
-    declared = DEFAULT_FILE_ARGS.get(args.command, {})
-    names_in = getattr(args, "file_inputs", None) or declared.get("inputs", ())
-    names_out = getattr(args, "file_outputs", None) or declared.get("outputs", ())
+    names_in = getattr(args, "file_inputs", None) or ()
+    names_out = getattr(args, "file_outputs", None) or ()
+    if callable(names_out):  # outputs that depend on the other flags
+        names_out = names_out(args)
 
     def flag(name):
         return "FILE" if name in ("files", "file") else "--" + name.replace("_", "-")
@@ -153,8 +123,6 @@ def _file_args(args) -> tuple[dict, dict]:
 
     inputs = {flag(n): existing(getattr(args, n, None)) for n in names_in}
     outputs = {flag(n): getattr(args, n, None) for n in names_out}
-    if args.command == "arm" and not getattr(args, "write_models", False):
-        outputs.pop("--models-dir", None)
     if getattr(args, "mujoco_log", None) is not None:
         if not args.mujoco_log.strip() or Path(args.mujoco_log).is_dir():
             raise ValueError(f"--mujoco-log: '{args.mujoco_log}' is not a file name")
@@ -163,10 +131,13 @@ def _file_args(args) -> tuple[dict, dict]:
 
 
 def check_argument_bounds(args) -> None:
-    """Refuse a value outside :data:`ARGUMENT_BOUNDS` for ``args.command``, naming the flag."""
+    """Refuse a value outside the bounds a command declares (``parser.set_defaults(
+    argument_bounds={dest: (low, high, unit)})``; a callable bound is read when the command
+    runs; a flag the command does not have is skipped), naming the flag: a size that can exhaust
+    the machine, or a control MuJoCo would clamp silently."""
     import math
 
-    for dest, (low, high, unit) in ARGUMENT_BOUNDS.get(args.command, {}).items():
+    for dest, (low, high, unit) in (getattr(args, "argument_bounds", None) or {}).items():
         value = getattr(args, dest, None)
         if value is None:
             continue
@@ -195,6 +166,20 @@ def _quiet_broken_pipe() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one ``efam`` command; returns the exit status (0 ok, 2 bad input)."""
+    # SIGTERM unwinds from the start: while the commands' modules import (seconds on a busy
+    # machine) as well as while one runs
+    previous_term = _terminate_as_interrupt()
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("efam: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if previous_term is not None:
+            signal.signal(signal.SIGTERM, previous_term)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -203,7 +188,6 @@ def main(argv: list[str] | None = None) -> int:
     from .files import check_outputs, route_mujoco_log
 
     command = f"efam {args.command}"
-    previous_term = _terminate_as_interrupt()
     try:
         inputs, outputs = _file_args(args)
         check_outputs(outputs, inputs)
@@ -232,9 +216,6 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 3
-    finally:
-        if previous_term is not None:
-            signal.signal(signal.SIGTERM, previous_term)
 
 
 def _terminate_as_interrupt():

@@ -15,7 +15,7 @@ from ..files import write_json_atomic, write_text_atomic
 from ..musclefile import load_muscle
 from .builder import MODELS_DIR, arm_xml, build_model, static_equilibrium, tip_in_base, write_models
 from .continuum import solve_arm_spec
-from .spec import DEFAULT_DISKS, ORIENTATIONS, ArmSpec, SectionSpec
+from .spec import DEFAULT_DISKS, MAX_TESTED_PRESSURE_PA, ORIENTATIONS, ArmSpec, SectionSpec
 
 
 def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force_N=(0.0, 0.0, 0.0)) -> dict:
@@ -38,6 +38,25 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
         ),
         "section_bend_deg": [float(np.degrees(sec.bend_angle_rad)) for sec in state.sections],
     }
+
+
+#: Bounds on ``efam arm``'s values (checked by efam_mujoco.cli before the command runs): sizes
+#: that would exhaust the machine, and pressures MuJoCo would clamp silently to the actuators'
+#: control range (the continuum column would not). ``dest: (low, high, unit)``.
+ARGUMENT_BOUNDS = {
+    "sections": (1, 20, ""),
+    "muscles_per_section": (3, 24, ""),
+    "disks": (1, 40, ""),
+    "radius_mm": (1.0, 500.0, "mm"),
+    "payload_kg": (0.0, 50.0, "kg"),
+    "pressure_lag_s": (0.0, 10.0, "s"),
+    "pressures_kPa": (0.0, MAX_TESTED_PRESSURE_PA / 1e3, "kPa"),
+}
+
+
+def _outputs(args) -> tuple[str, ...]:
+    """The output flags of this invocation (the models folder only with --write-models)."""
+    return ("xml", "json", "models_dir") if args.write_models else ("xml", "json")
 
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -151,11 +170,13 @@ def register_cli(subparsers) -> None:
         description=__doc__.splitlines()[0],
     )
     _add_arguments(parser)
-    parser.set_defaults(run=_run)
+    parser.set_defaults(
+        run=_run, file_inputs=("muscle",), file_outputs=_outputs, argument_bounds=ARGUMENT_BOUNDS
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m efam_mujoco.arm``."""
-    parser = argparse.ArgumentParser(prog="python -m efam_mujoco.arm", description=__doc__.splitlines()[0])
-    _add_arguments(parser)
-    return _run(parser.parse_args(argv))
+    """``python -m efam_mujoco.arm ...`` = ``efam arm ...`` (the same checks and error handling)."""
+    from ..cli import main as efam_main
+
+    return efam_main(["arm", *(sys.argv[1:] if argv is None else argv)])
