@@ -54,22 +54,30 @@ def _mode_of(path: Path) -> int:
     return 0o666 & ~umask
 
 
+@contextlib.contextmanager
+def _renamed_over(tmp: Path, path: Path):
+    """Around the writing of ``tmp``: on success give it the usual permissions and rename it over
+    ``path``; in every case leave no temporary behind."""
+    try:
+        yield
+        os.chmod(tmp, _mode_of(path))
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to a unique temporary beside ``path`` and rename it over ``path``."""
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{path}: is a folder, not a file")
     fd, tmp = _temporary_beside(path)
-    try:
+    with _renamed_over(tmp, path):
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
-        os.chmod(tmp, _mode_of(path))
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
     return path
 
 
@@ -119,13 +127,8 @@ def save_figure(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
     fmt = savefig_kwargs.pop("format", None) or (path.suffix[1:].lower() or "png")
     fd, tmp = _temporary_beside(path, suffix=path.suffix)
     os.close(fd)
-    try:
+    with _renamed_over(tmp, path):
         fig.savefig(tmp, format=fmt, **savefig_kwargs)
-        os.chmod(tmp, _mode_of(path))
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
     return path
 
 
