@@ -264,38 +264,43 @@ PCC_STIFFNESS_RATIO = 30.0
 
 def _add_pcc_coupling(spec, arm: ArmSpec, j: int, section: SectionSpec):
     """PCC: every half-link of the section extends like the section's mean and every link bends
-    like the mean, held by conservative springs on the departures q_k - mean(q) (fixed tendons
-    with stiffness), a penalty (no constraint: nothing numerical decides the rest pose). Their
-    energy (1/2) k sum (q_k - mean)^2 makes every departure from constant curvature, smooth or
-    zig-zag, ``PCC_STIFFNESS_RATIO`` times stiffer than the muscles make a single joint (springs
-    between neighbours would resist the smooth departures gravity causes only (pi / D)^2 as
-    much). Their dampers are ``PCC_STIFFNESS_RATIO`` times the bundle's viscous damping of the
-    same joints (the coupling relaxes like the bundle, vanishes with the viscosities, and its
-    damping counts in the damping work)."""
+    like the mean, held by conservative springs on the departures q_k - mean(q), a penalty (no
+    constraint: nothing numerical decides the rest pose). Their energy (1/2) k sum (q_k - mean)^2
+    makes every departure from constant curvature, smooth or zig-zag, ``PCC_STIFFNESS_RATIO``
+    times stiffer than the muscles make a single joint (springs between neighbours would resist
+    the smooth departures gravity causes only (pi / D)^2 as much). It is built as
+    (1/2) k sum (q_k - q_rest)^2 (joint springs) minus (1/2) k N (mean - q_rest)^2 (a fixed
+    tendon over the N joints with negative stiffness): N + 1 terms instead of N tendons of N
+    joints. The dampers, the same way, are ``PCC_STIFFNESS_RATIO`` times the bundle's viscous
+    damping of the same joints (the coupling relaxes like the bundle, vanishes with the
+    viscosities, and its damping counts in the damping work)."""
     D = section.disks
     k_muscles = sum(-(m.push(0.0, m.rest_length_m * 1.000001) - m.push(0.0, m.rest_length_m * 0.999999))
                     / (2e-6 * m.rest_length_m) for m in section.muscles)  # fmt: skip
     half = section.rest_length_m / (2 * D)
     offsets = section.offsets_m()
     mean_k = k_muscles / len(section.muscles)
-    groups = [  # joints, a joint's stiffness from the muscles, its viscous damping
-        ([f"s{j}d{k}_ext_{e}" for k in range(1, D + 1) for e in ("a", "b")], 2 * D * k_muscles,
+    groups = [  # name, joints, rest value, a joint's stiffness from the muscles, its viscous damping
+        ("ext", [f"s{j}d{k}_ext_{e}" for k in range(1, D + 1) for e in ("a", "b")], half, 2 * D * k_muscles,
          arm.axial_viscosity_N_s / half),
-        ([f"s{j}d{k}_bend_x" for k in range(1, D + 1)], D * mean_k * float(np.sum(offsets[:, 1] ** 2)),
-         arm.bend_viscosity_N_m2_s / (2 * half)),
-        ([f"s{j}d{k}_bend_y" for k in range(1, D + 1)], D * mean_k * float(np.sum(offsets[:, 0] ** 2)),
-         arm.bend_viscosity_N_m2_s / (2 * half)),
+        ("bend_x", [f"s{j}d{k}_bend_x" for k in range(1, D + 1)], 0.0,
+         D * mean_k * float(np.sum(offsets[:, 1] ** 2)), arm.bend_viscosity_N_m2_s / (2 * half)),
+        ("bend_y", [f"s{j}d{k}_bend_y" for k in range(1, D + 1)], 0.0,
+         D * mean_k * float(np.sum(offsets[:, 0] ** 2)), arm.bend_viscosity_N_m2_s / (2 * half)),
     ]  # fmt: skip
-    for joints, stiffness, damping in groups:
+    for name, joints, rest, stiffness, damping in groups:
+        k, c = PCC_STIFFNESS_RATIO * stiffness, PCC_STIFFNESS_RATIO * damping
         for joint in joints:
-            tendon = spec.add_tendon(
-                name=f"pcc_{joint}",
-                stiffness=PCC_STIFFNESS_RATIO * stiffness,
-                damping=PCC_STIFFNESS_RATIO * damping,
-                springlength=[0.0, 0.0],
-            )
-            for other in joints:
-                tendon.wrap_joint(other, (other == joint) - 1.0 / len(joints))
+            element = spec.joint(joint)
+            element.stiffness = [k, *element.stiffness[1:]]  # (linear, polynomial terms)
+            element.springref = rest
+            element.damping = [element.damping[0] + c, *element.damping[1:]]
+        count = len(joints)
+        mean = spec.add_tendon(
+            name=f"pcc_s{j}_{name}", stiffness=-k * count, damping=-c * count, springlength=[rest, rest]
+        )
+        for joint in joints:
+            mean.wrap_joint(joint, 1.0 / count)
 
 
 def _add_actuator(spec, arm, name, tendon):
