@@ -4,7 +4,7 @@ constrained arm), the random-pressure sweep, the D convergence table, the undamp
     python bench/bench_arm.py speed [--steps 3000] [--repeats 5]
     python bench/bench_arm.py sweep [--sets 200]       # gravity off, 3/4/6 muscles x 1/2/3 sections
     python bench/bench_arm.py convergence              # tip error vs the continuum reference, D = 4..32
-    python bench/bench_arm.py energy                   # damping 0, D = 4, RK4 at 0.1 ms, 10 s
+    python bench/bench_arm.py energy [--arms 1x3 3x3] [--disks D] [--modes ...]   # 10 s undamped
 
 Speed is measured side by side in one process, interleaved repeats, medians, single thread; the
 former constrained 3x3 arm (60 dof, 51 equality rows) is ``bench/reference/arm_3x3_constrained.xml``
@@ -26,7 +26,8 @@ import mujoco
 import numpy as np
 
 from efam_mujoco import arm, load_muscle, plugin
-from efam_mujoco.arm import continuum
+from efam_mujoco.arm import continuum, timestep
+from efam_mujoco.arm import energy as arm_energy
 from efam_mujoco.files import write_json_atomic
 from efam_mujoco.progress import progress
 
@@ -194,26 +195,108 @@ def convergence(args) -> dict:
     return out
 
 
-def energy(args) -> dict:
-    sys.path.insert(0, str(HERE.parent / "tests"))
-    from test_arm_energy import released_arm, run_energy_balance
+ENERGY_ARMS = {  # label: (sections, orientation, D (None: the default))
+    "1x3": (1, "horizontal", None),
+    "3x3": (3, "hanging", None),
+}
 
+
+def released(sections, orientation, disks, mode, damped):
+    """The arm at rest at 400/250/250 kPa per section (found with damping), pressures switched to
+    300 kPa: it swings under gravity. Built at the builder's own step and integrator for its
+    damping (the undamped arm: RK4). Returns (spec, model, data, total energy function)."""
+
+    def make(scale):
+        return arm.ArmSpec(
+            sections=(arm.paper_section(disks),) * sections, orientation=orientation, pressure_tau_s=0.0,
+            axial_viscosity_N_s=6.8 * scale, bend_viscosity_N_m2_s=0.05 * scale, mode=mode,
+        )  # fmt: skip
+
+    rest_model = arm.build_model(make(1.0))
+    rest = mujoco.MjData(rest_model)
+    arm.static_equilibrium(rest_model, rest, [400e3, 250e3, 250e3] * sections)
+    spec = make(1.0 if damped else 0.0)
+    model = arm.build_model(spec)
+    data = mujoco.MjData(model)
+    data.qpos[:] = rest.qpos
+    data.ctrl[:] = 300e3
+    mujoco.mj_forward(model, data)
+    names = [n for section in arm.muscle_names(spec) for n in section]
+    potential = arm_energy.MusclePotential(
+        model, names, [load_muscle("FAM1")] * len(names), [300e3] * len(names)
+    )
+
+    def total():
+        return (
+            arm_energy.kinetic_energy(model, data) + arm_energy.gravity_energy(model, data) + potential(data)
+            + arm_energy.spring_energy(model, data)
+        )  # fmt: skip
+
+    return spec, model, data, total
+
+
+def balance(model, data, total, duration, every, label):
+    """Step for ``duration``: (largest kinetic energy, largest |E(t) - E(0) + damping work|, energy
+    lost, damping work (trapezoidal, every step when damped), wall time)."""
+    e0, work, worst, kinetic = total(), 0.0, 0.0, 0.0
+    power = arm_energy.damping_power(model, data)
+    steps = int(round(duration / model.opt.timestep))
+    start = time.perf_counter()
+    for step in progress(range(1, steps + 1), label, total=steps):
+        mujoco.mj_step(model, data)
+        if step % every and step != steps:
+            continue
+        mujoco.mj_forward(model, data)
+        new_power = arm_energy.damping_power(model, data)
+        work += 0.5 * (power + new_power) * model.opt.timestep * every
+        power = new_power
+        kinetic = max(kinetic, arm_energy.kinetic_energy(model, data))
+        worst = max(worst, abs(total() - e0 + work))
+    if not np.all(np.isfinite(data.qpos)):
+        raise RuntimeError(f"{label}: diverged")
+    return kinetic, worst, e0 - total(), work, time.perf_counter() - start
+
+
+def energy(args) -> dict:
+    """Damping 0, fixed pressures, gravity on, released from a bent pose, 10 s at the builder's
+    step and integrator: energy drift vs the largest kinetic energy; with the default damping,
+    3 s: energy lost vs the dampers' work."""
     out = {}
-    for mode in ("segmented", "pcc"):
-        model, data, total = released_arm(4, 1e-4, 0.0, mujoco.mjtIntegrator.mjINT_RK4, mode)
-        kinetic, drift, _, _ = run_energy_balance(model, data, total, 10.0)
-        out[mode] = {
-            "largest_kinetic_J": kinetic,
-            "drift_J": drift,
-            "drift_pct_of_kinetic": 100 * drift / kinetic,
-        }
-        print(
-            f"{mode}: D = 4, RK4 0.1 ms, 10 s undamped: drift {100 * drift / kinetic:.3f} % of {kinetic:.3f} J"
-        )
-        model, data, total = released_arm(arm.DEFAULT_DISKS, 1e-3, 1.0, mode=mode)
-        _, _, lost, work = run_energy_balance(model, data, total, 3.0)
-        out[mode]["damped_lost_J"], out[mode]["damped_work_J"] = lost, work
-        print(f"{mode}: default D, dt, damping: lost {lost:.5f} J, damping work {work:.5f} J")
+    for label in args.arms:
+        sections, orientation, disks = ENERGY_ARMS[label]
+        D = args.disks or disks or arm.DEFAULT_DISKS
+        for mode in args.modes:
+            key = f"{label} {orientation} D={D} {mode}"
+            spec, model, data, total = released(sections, orientation, D, mode, damped=False)
+            choice = timestep.recorded_timestep(model)
+            kinetic, drift, _, _, wall = balance(model, data, total, args.duration, 10, key + " undamped")
+            row = {
+                "undamped_integrator": choice.integrator,
+                "undamped_timestep_s": model.opt.timestep,
+                "omega_max_rad_s": choice.omega_max_rad_s,
+                "omega_max_dt": choice.omega_max_rad_s * model.opt.timestep,
+                "duration_s": args.duration,
+                "largest_kinetic_J": kinetic,
+                "drift_J": drift,
+                "drift_pct_of_kinetic": 100 * drift / kinetic,
+                "undamped_wall_s": wall,
+            }
+            print(
+                f"{key}: undamped, {choice.integrator} {model.opt.timestep * 1e3:g} ms (omega_max dt "
+                f"{row['omega_max_dt']:.2f}), {args.duration:g} s: drift {row['drift_pct_of_kinetic']:.3f} % of "
+                f"{kinetic:.3f} J ({wall:.0f} s wall)", flush=True,
+            )  # fmt: skip
+            spec, model, data, total = released(sections, orientation, D, mode, damped=True)
+            _, _, lost, work, _ = balance(model, data, total, 3.0, 1, key + " damped")
+            row.update({
+                "damped_integrator": timestep.recorded_timestep(model).integrator,
+                "damped_timestep_s": model.opt.timestep, "damped_lost_J": lost, "damped_work_J": work,
+                "damped_lost_over_work_minus_1_pct": 100 * (lost / work - 1),
+            })  # fmt: skip
+            print(f"{key}: default damping, {row['damped_integrator']} {model.opt.timestep * 1e3:g} ms, 3 s: "
+                  f"lost {lost:.5f} J, damping work {work:.5f} J ({row['damped_lost_over_work_minus_1_pct']:+.3f} %)",
+                  flush=True)  # fmt: skip
+            out[key] = row
     return out
 
 
@@ -227,7 +310,11 @@ def main(argv=None) -> int:
     p.add_argument("--sets", type=int, default=200)
     p = sub.add_parser("convergence")
     p.add_argument("--disks", type=int, nargs="+", default=[4, 8, 16, 32])
-    sub.add_parser("energy")
+    p = sub.add_parser("energy")
+    p.add_argument("--arms", nargs="+", choices=sorted(ENERGY_ARMS), default=list(ENERGY_ARMS))
+    p.add_argument("--modes", nargs="+", choices=("segmented", "pcc"), default=["segmented", "pcc"])
+    p.add_argument("--disks", type=int, default=None, help="D (default: the arm's default)")
+    p.add_argument("--duration", type=float, default=10.0, help="undamped run, simulated s")
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     result = {"speed": speed, "sweep": sweep, "convergence": convergence, "energy": energy}[args.command](
@@ -236,6 +323,8 @@ def main(argv=None) -> int:
     doc = json.loads(args.out.read_text()) if args.out.exists() else {}
     if "benchmark" in doc:  # the former single-benchmark layout
         doc = {}
+    if args.command == "energy":  # one key per arm, kept across runs of different arms
+        result = {**doc.get("energy", {}), **result}
     doc[args.command] = result
     doc["environment"] = {
         "mujoco": mujoco.__version__,

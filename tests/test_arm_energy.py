@@ -80,7 +80,11 @@ def test_undamped_arm_conserves_energy(mode):
     small); bench/bench_arm.py energy runs 10 s."""
     model, data, total = released_arm(mode, damped=False)
     choice = timestep.recorded_timestep(model)
-    assert not choice.given and choice.integrator == "RK4" and model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    assert (
+        not choice.given
+        and choice.integrator == "RK4"
+        and model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    )
     assert choice.omega_max_rad_s * model.opt.timestep <= 2 * np.sqrt(2) / timestep.TIMESTEP_SAFETY
     assert not (model.dof_damping.any() or model.tendon_damping.any())
     duration = min(10.0, STEP_BUDGET * model.opt.timestep)

@@ -212,7 +212,13 @@ def apply_timestep(spec: mujoco.MjSpec, max_pressure_Pa: float, given_s: float |
     spec.option.timestep = choice.timestep_s
     spec.add_numeric(
         name=NUMERIC_NAME,
-        data=[choice.timestep_s, choice.omega_max_rad_s, choice.undamped_limit_s, choice.limit_s, float(choice.given)],
+        data=[
+            choice.timestep_s,
+            choice.omega_max_rad_s,
+            choice.undamped_limit_s,
+            choice.limit_s,
+            float(choice.given),
+        ],
     )
     return choice
 
