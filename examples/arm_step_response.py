@@ -98,7 +98,8 @@ def main(argv=None) -> int:
     ax_x.set_ylabel("tip position (mm)")
     ax_x.legend(fontsize=8, loc="center", bbox_to_anchor=(0.38, 0.55))
     fig.suptitle(
-        f"3x3 FAM1 arm, hanging: pressure steps (tau = 50 ms, dt = {model.opt.timestep * 1e3:g} ms)", fontsize=11
+        f"3x3 FAM1 arm, hanging: pressure steps (tau = 50 ms, dt = {model.opt.timestep * 1e3:g} ms)",
+        fontsize=11,
     )
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)

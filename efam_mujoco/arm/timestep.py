@@ -18,7 +18,8 @@ generalized force at zero velocity, the mass matrix M (``mj_fullM``), the dampin
 damping plus the tendons' dampers). The modes (K phi = omega^2 M phi) and their modal damping
 give each mode's limit; the step is the largest of :data:`ROUND_TIMESTEPS_S` that is stable at
 :data:`TIMESTEP_SAFETY` times itself (checked once more on the full linearised step map), so the
-stiffening of the muscles away from the straight rest pose has a margin. An explicitly given
+stiffening of the muscles away from the straight rest pose has a margin. The integrator follows
+the damping (:func:`default_integrator`): ``implicitfast`` with damping, RK4 without. An explicitly given
 step beyond the arm's limit is refused; one beyond the undamped limit (stable only thanks to the
 damping, or closer to the limit than the margin) gets a :class:`TimestepWarning`.
 """
@@ -37,11 +38,14 @@ import scipy.linalg
 #: order, and the tip's path after a pressure step departs from a 0.1 ms reference by 2.2 % of
 #: the arm's length at 2 ms, 1.0 % at 1 ms, 0.38 % at 0.5 ms (1x3, D = 16, lag 50 ms; docs/arms.md)
 ROUND_TIMESTEPS_S = (1e-3, 5e-4, 2.5e-4, 2e-4, 1e-4, 5e-5, 2.5e-5, 2e-5, 1e-5, 5e-6, 2.5e-6, 2e-6, 1e-6)
-#: the chosen step is stable (linearised at rest) at this multiple of itself: a margin for the
-#: muscles' stiffening away from the rest pose and for the nonlinear terms. Measured: undamped,
-#: omega_max dt = 1 keeps the energy of a released bent arm within 0.2 % of its kinetic energy
-#: over 10 s (bench/bench_arm.py energy); see docs/arms.md.
-TIMESTEP_SAFETY = 2.0
+#: the chosen step is stable (linearised at rest) at this multiple of itself, by integrator: a
+#: margin for the muscles' stiffening away from the rest pose and for the nonlinear terms.
+#: implicitfast (the damped arm): 2. RK4 (the undamped arm): 4, i.e. omega_max dt <= 0.71,
+#: for energy rather than stability: RK4 damps a mode of frequency omega by about
+#: (omega dt)^6 / 72 per step, and the released arm feeds its fastest modes; measured, the 3x3
+#: arm at D = 4 over 10 s drifts 3.6 % of its kinetic energy at omega_max dt = 1.37 (see
+#: docs/arms.md)
+TIMESTEP_SAFETY = {"implicitfast": 2.0, "RK4": 4.0}
 IMPLICITFAST = int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
 RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 _NAMES = {IMPLICITFAST: "implicitfast", RK4: "RK4"}
@@ -51,7 +55,7 @@ NUMERIC_NAME = "efam_timestep"
 
 class TimestepWarning(UserWarning):
     """An explicitly chosen time step the arm tolerates only thanks to its damping, or with less
-    margin than :data:`TIMESTEP_SAFETY`."""
+    margin than :data:`TIMESTEP_SAFETY` asks."""
 
 
 @dataclass(frozen=True)
@@ -73,7 +77,8 @@ class TimestepChoice:
 
     def describe(self) -> str:
         """One line for people: the step, how it was found, and the limits."""
-        how = "given" if self.given else f"chosen: stable at {TIMESTEP_SAFETY:g} x itself"
+        margin = TIMESTEP_SAFETY.get(self.integrator, 2.0)
+        how = "given" if self.given else f"chosen: stable at {margin:g} x itself"
         return (
             f"time step {self.timestep_s * 1e3:g} ms, {self.integrator} ({how}); fastest mode omega_max = "
             f"{self.omega_max_rad_s:.0f} rad/s: undamped limit "
@@ -182,10 +187,11 @@ def choose_timestep(
 
     explicit_limit = 2 * math.sqrt(2) if integrator == RK4 else 2.0
     undamped_limit = explicit_limit / omega_max if omega_max > 0 else math.inf
+    safety = TIMESTEP_SAFETY[_NAMES[integrator]]
     if given_s is None:
-        candidates = [dt for dt in ROUND_TIMESTEPS_S if TIMESTEP_SAFETY * dt <= limit]
-        candidates = candidates or [limit / TIMESTEP_SAFETY]
-        chosen = next((dt for dt in candidates if stable(TIMESTEP_SAFETY * dt)), candidates[-1])
+        candidates = [dt for dt in ROUND_TIMESTEPS_S if safety * dt <= limit]
+        candidates = candidates or [limit / safety]
+        chosen = next((dt for dt in candidates if stable(safety * dt)), candidates[-1])
         return TimestepChoice(chosen, omega_max, undamped_limit, limit, False, _NAMES[integrator])
     choice = TimestepChoice(float(given_s), omega_max, undamped_limit, limit, True, _NAMES[integrator])
     if given_s > limit or not stable(given_s):
@@ -193,12 +199,12 @@ def choose_timestep(
             f"arm: timestep_s = {given_s * 1e3:g} ms is unstable for this arm: {choice.describe()}; "
             "leave timestep_s unset (None) to let the builder choose"
         )
-    if given_s > undamped_limit or TIMESTEP_SAFETY * given_s > limit:
+    if given_s > undamped_limit or safety * given_s > limit:
         import warnings
 
         warnings.warn(
             f"arm: timestep_s = {given_s * 1e3:g} ms is stable only thanks to the arm's damping or within "
-            f"less than {TIMESTEP_SAFETY:g} x margin ({choice.describe()}); with less damping it diverges",
+            f"less than {safety:g} x margin ({choice.describe()}); with less damping it diverges",
             TimestepWarning,
             stacklevel=3,
         )
