@@ -346,7 +346,8 @@ def main(argv=None) -> int:
     if "benchmark" in doc:  # the former single-benchmark layout
         doc = {}
     if args.command == "energy":  # one key per arm, kept across runs of different arms
-        result = {**doc.get("energy", {}), **result}
+        kept = {k: v for k, v in doc.get("energy", {}).items() if k not in ("segmented", "pcc")}  # old layout
+        result = {**kept, **result}
     doc[args.command] = result
     doc["environment"] = {
         "mujoco": mujoco.__version__,
