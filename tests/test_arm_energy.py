@@ -3,6 +3,7 @@ rest pose across time steps and solver settings. Everything at the default D, an
 check is about the step) at the builder's own time step and integrator."""
 
 import warnings
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -146,3 +147,45 @@ def test_rest_pose_is_independent_of_numerical_settings(mode):
     worst = max(np.linalg.norm(a - b) for a in tips.values() for b in tips.values()) / length
     assert worst < 5e-4, f"rest tip moved {worst:.3%} of the arm's length: {tips}"
     print(f"\n{mode}: rest tip moved at most {worst:.2e} of the arm's length")
+
+
+def grows(model, steps=400):
+    """Start straight at rest (gravity off, zero pressure: qpos0 is the equilibrium) with a tiny
+    random disturbance (1e-6 m/s, rad/s): whether it grows a thousandfold (an unstable
+    step's growth saturates in the muscles' nonlinearity or ends in MuJoCo's reset) within
+    ``steps``."""
+    data = mujoco.MjData(model)
+    data.qvel[:] = 1e-6 * np.random.default_rng(0).standard_normal(model.nv)
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+        if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number or np.abs(data.qvel).max() > 1e-3:
+            return True  # (MuJoCo resets a diverged state and counts a warning)
+    return False
+
+
+@pytest.mark.parametrize("damped", [True, False])
+def test_stability_limit_matches_simulation(damped):
+    """The linearised stability limit (undamped: RK4, 2 sqrt(2) / omega_max; damped: implicitfast,
+    from each mode's frequency and damping) is where the simulated arm starts to diverge: stable
+    at 0.8 x the limit, diverging at 1.25 x (at rest, zero pressure). The builder's limit (the
+    smaller of zero and the highest pressure) is at most this one; a step beyond it is refused
+    when given, and a damped step above the undamped limit warns."""
+    spec = arm.ArmSpec(
+        sections=(arm.paper_section(arm.DEFAULT_DISKS),), gravity=False, pressure_tau_s=0.0,
+        axial_viscosity_N_s=6.8 * damped, bend_viscosity_N_m2_s=0.05 * damped,
+    )  # fmt: skip
+    model = arm.build_model(spec)
+    choice = timestep.recorded_timestep(model)
+    assert choice.integrator == ("implicitfast" if damped else "RK4")
+    _, _, limits = timestep.modal_limits(*timestep.linearise(model, 0.0), int(model.opt.integrator))
+    limit = float(limits.min())
+    assert choice.limit_s <= limit * (1 + 1e-9)
+    model.opt.timestep = 0.8 * limit
+    assert not grows(model)
+    model.opt.timestep = 1.25 * limit
+    assert grows(model)
+    with pytest.raises(ValueError, match="omega_max"):
+        arm.build_spec(replace(spec, timestep_s=1.25 * choice.limit_s))
+    if damped:
+        with pytest.warns(timestep.TimestepWarning, match="undamped limit"):
+            arm.build_spec(replace(spec, timestep_s=2e-3))

@@ -27,6 +27,7 @@ damping, or closer to the limit than the margin) gets a :class:`TimestepWarning`
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import mujoco
@@ -200,8 +201,6 @@ def choose_timestep(
             "leave timestep_s unset (None) to let the builder choose"
         )
     if given_s > undamped_limit or safety * given_s > limit:
-        import warnings
-
         warnings.warn(
             f"arm: timestep_s = {given_s * 1e3:g} ms is stable only thanks to the arm's damping or within "
             f"less than {safety:g} x margin ({choice.describe()}); with less damping it diverges",
