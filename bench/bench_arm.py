@@ -4,9 +4,13 @@ constrained arm), the random-pressure sweep, the D convergence table, the undamp
     python bench/bench_arm.py speed [--steps 3000] [--repeats 5]
     python bench/bench_arm.py sweep [--sets 200]       # gravity off, 3/4/6 muscles x 1/2/3 sections
     python bench/bench_arm.py convergence              # tip error vs the continuum reference, D = 4..32
-    python bench/bench_arm.py energy [--arms 1x3 3x3] [--disks D] [--modes ...]   # 10 s undamped
+    python bench/bench_arm.py energy [--arms 1x3 3x3] [--disks D] [--modes ...] [--duration 10]
 
-Speed is measured side by side in one process, interleaved repeats, medians, single thread; the
+Energy: each arm and mode at the builder's own step and integrator, undamped (RK4) for
+``--duration`` and with the default damping (implicitfast) for 3 s; measured here: the 1x3 at
+the default D and the 3x3 at D = 4 (the 3x3 at D = 16 undamped takes hours on one core).
+Speed (steps/s and real-time factor) is measured side by side in one process, interleaved
+repeats, medians, single thread; the
 former constrained 3x3 arm (60 dof, 51 equality rows) is ``bench/reference/arm_3x3_constrained.xml``
 (the shipped model before the physical arm). Each command updates its key of
 ``bench/results/arm.json``.
