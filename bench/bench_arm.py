@@ -4,9 +4,13 @@ constrained arm), the random-pressure sweep, the D convergence table, the undamp
     python bench/bench_arm.py speed [--steps 3000] [--repeats 5]
     python bench/bench_arm.py sweep [--sets 200]       # gravity off, 3/4/6 muscles x 1/2/3 sections
     python bench/bench_arm.py convergence              # tip error vs the continuum reference, D = 4..32
-    python bench/bench_arm.py energy                   # damping 0, D = 4, RK4 at 0.1 ms, 10 s
+    python bench/bench_arm.py energy [--arms 1x3 3x3] [--disks D] [--modes ...] [--duration 10]
 
-Speed is measured side by side in one process, interleaved repeats, medians, single thread; the
+Energy: each arm and mode at the builder's own step and integrator, undamped (RK4) for
+``--duration`` and with the default damping (implicitfast) for 3 s; measured here: the 1x3 at
+the default D and the 3x3 at D = 4 (the 3x3 at D = 16 undamped takes hours on one core).
+Speed (steps/s and real-time factor) is measured side by side in one process, interleaved
+repeats, medians, single thread; the
 former constrained 3x3 arm (60 dof, 51 equality rows) is ``bench/reference/arm_3x3_constrained.xml``
 (the shipped model before the physical arm). Each command updates its key of
 ``bench/results/arm.json``.
@@ -20,13 +24,15 @@ import platform
 import statistics
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from efam_mujoco import arm, load_muscle, plugin
-from efam_mujoco.arm import continuum
+from efam_mujoco.arm import continuum, timestep
+from efam_mujoco.arm import energy as arm_energy
 from efam_mujoco.files import write_json_atomic
 from efam_mujoco.progress import progress
 
@@ -58,14 +64,27 @@ def run(model: mujoco.MjModel, controls: np.ndarray) -> float:
 
 
 def speed(args) -> dict:
+    """Steps/s and real-time factor (simulated s per wall s) of the 3x3 arm: segmented and PCC at
+    the default D and at D = 4, each at the builder's time step; the built-in affine actuators
+    (one per segment) at the same step as the plugin; the former constrained arm at its 1 ms."""
     plugin.load()
     D = arm.DEFAULT_DISKS
+
+    def pair(**kw):
+        model = arm.build_model(arm.arm_3x3(**kw))
+        with warnings.catch_warnings():  # the plugin arm's step, given explicitly to the affine arm
+            warnings.simplefilter("ignore", timestep.TimestepWarning)
+            affine = arm.build_model(arm.arm_3x3(timestep_s=model.opt.timestep, **kw), muscles="affine")
+        return model, affine
+
+    plugin_D, affine_D = pair(disks=D)
+    plugin_4, affine_4 = pair(disks=4)
     variants = {
-        f"segmented D={D} plugin": (arm.build_model(arm.arm_3x3()), 1),
-        f"segmented D={D} affine": (arm.build_model(arm.arm_3x3(), muscles="affine"), 2 * D),
-        "segmented D=4 plugin": (arm.build_model(arm.arm_3x3(disks=4)), 1),
-        "segmented D=4 affine": (arm.build_model(arm.arm_3x3(disks=4), muscles="affine"), 8),
-        f"pcc D={D} plugin": (arm.build_model(arm.arm_3x3(mode="pcc")), 1),
+        f"segmented D={D} plugin": (plugin_D, 1),
+        f"segmented D={D} affine": (affine_D, 2 * D),
+        "segmented D=4 plugin": (plugin_4, 1),
+        "segmented D=4 affine": (affine_4, 8),
+        f"pcc D={D} plugin": (arm.build_model(arm.arm_3x3(mode="pcc", disks=D)), 1),
         "pcc D=4 plugin": (arm.build_model(arm.arm_3x3(mode="pcc", disks=4)), 1),
         "constrained (former arm_3x3, D=4)": (mujoco.MjModel.from_xml_path(str(CONSTRAINED)), 1),
     }
@@ -81,28 +100,36 @@ def speed(args) -> dict:
         for name in order:
             rates[name].append(run(variants[name][0], controls[name]))
     median = {name: statistics.median(r) for name, r in rates.items()}
+    step = {name: float(m.opt.timestep) for name, (m, _) in variants.items()}
+    realtime = {name: median[name] * step[name] for name in variants}
     ratio = {
         f"D={D}": median[f"segmented D={D} plugin"] / median[f"segmented D={D} affine"],
         "D=4": median["segmented D=4 plugin"] / median["segmented D=4 affine"],
     }
-    old = median["constrained (former arm_3x3, D=4)"]
+    old = "constrained (former arm_3x3, D=4)"
     for name, rate in median.items():
         m = variants[name][0]
         print(
-            f"{name:36s} nv {m.nv:3d}  neq {m.neq:2d}  {rate:8.0f} steps/s  ({rate / old:.2f} x the constrained arm)"
+            f"{name:36s} nv {m.nv:3d}  neq {m.neq:2d}  dt {step[name] * 1e3:g} ms  {rate:8.0f} steps/s "
+            f"({rate / median[old]:.2f} x the constrained arm)  real time x {realtime[name]:.2f} "
+            f"({realtime[name] / realtime[old]:.2f} x the constrained arm)"
         )
     for key, value in ratio.items():
         print(f"plugin / built-in affine at {key}: {value:.3f} (goal >= 0.95)")
     return {
-        "model": "3x3 FAM1 arm, hanging, gravity on, pressure lag, dt 1 ms, implicitfast",
+        "model": "3x3 FAM1 arm, hanging, gravity on, pressure lag, default damping, each at the builder's "
+        "time step (implicitfast); affine at the plugin's step; the constrained arm at its 1 ms",
         "steps_per_run": args.steps,
         "repeats": args.repeats,
         "threads": 1,
         "steps_per_s": median,
         "steps_per_s_all": rates,
+        "timestep_s": step,
+        "real_time_factor": realtime,
         "nv": {name: int(m.nv) for name, (m, _) in variants.items()},
         "ratio_plugin_over_affine": ratio,
-        "ratio_to_constrained": {name: rate / old for name, rate in median.items()},
+        "ratio_to_constrained": {name: rate / median[old] for name, rate in median.items()},
+        "real_time_ratio_to_constrained": {name: rt / realtime[old] for name, rt in realtime.items()},
         "goal_ratio": 0.95,
         "meets_goal": all(v >= 0.95 for v in ratio.values()),
     }
@@ -194,26 +221,108 @@ def convergence(args) -> dict:
     return out
 
 
-def energy(args) -> dict:
-    sys.path.insert(0, str(HERE.parent / "tests"))
-    from test_arm_energy import released_arm, run_energy_balance
+ENERGY_ARMS = {  # label: (sections, orientation, D (None: the default))
+    "1x3": (1, "horizontal", None),
+    "3x3": (3, "hanging", None),
+}
 
+
+def released(sections, orientation, disks, mode, damped):
+    """The arm at rest at 400/250/250 kPa per section (found with damping), pressures switched to
+    300 kPa: it swings under gravity. Built at the builder's own step and integrator for its
+    damping (the undamped arm: RK4). Returns (spec, model, data, total energy function)."""
+
+    def make(scale):
+        return arm.ArmSpec(
+            sections=(arm.paper_section(disks),) * sections, orientation=orientation, pressure_tau_s=0.0,
+            axial_viscosity_N_s=6.8 * scale, bend_viscosity_N_m2_s=0.05 * scale, mode=mode,
+        )  # fmt: skip
+
+    rest_model = arm.build_model(make(1.0))
+    rest = mujoco.MjData(rest_model)
+    arm.static_equilibrium(rest_model, rest, [400e3, 250e3, 250e3] * sections)
+    spec = make(1.0 if damped else 0.0)
+    model = arm.build_model(spec)
+    data = mujoco.MjData(model)
+    data.qpos[:] = rest.qpos
+    data.ctrl[:] = 300e3
+    mujoco.mj_forward(model, data)
+    names = [n for section in arm.muscle_names(spec) for n in section]
+    potential = arm_energy.MusclePotential(
+        model, names, [load_muscle("FAM1")] * len(names), [300e3] * len(names)
+    )
+
+    def total():
+        return (
+            arm_energy.kinetic_energy(model, data) + arm_energy.gravity_energy(model, data) + potential(data)
+            + arm_energy.spring_energy(model, data)
+        )  # fmt: skip
+
+    return spec, model, data, total
+
+
+def balance(model, data, total, duration, every, label):
+    """Step for ``duration``: (largest kinetic energy, largest |E(t) - E(0) + damping work|, energy
+    lost, damping work (trapezoidal, every step when damped), wall time)."""
+    e0, work, worst, kinetic = total(), 0.0, 0.0, 0.0
+    power = arm_energy.damping_power(model, data)
+    steps = int(round(duration / model.opt.timestep))
+    start = time.perf_counter()
+    for step in progress(range(1, steps + 1), label, total=steps):
+        mujoco.mj_step(model, data)
+        if step % every and step != steps:
+            continue
+        mujoco.mj_forward(model, data)
+        new_power = arm_energy.damping_power(model, data)
+        work += 0.5 * (power + new_power) * model.opt.timestep * every
+        power = new_power
+        kinetic = max(kinetic, arm_energy.kinetic_energy(model, data))
+        worst = max(worst, abs(total() - e0 + work))
+    if not np.all(np.isfinite(data.qpos)):
+        raise RuntimeError(f"{label}: diverged")
+    return kinetic, worst, e0 - total(), work, time.perf_counter() - start
+
+
+def energy(args) -> dict:
+    """Damping 0, fixed pressures, gravity on, released from a bent pose, 10 s at the builder's
+    step and integrator: energy drift vs the largest kinetic energy; with the default damping,
+    3 s: energy lost vs the dampers' work."""
     out = {}
-    for mode in ("segmented", "pcc"):
-        model, data, total = released_arm(4, 1e-4, 0.0, mujoco.mjtIntegrator.mjINT_RK4, mode)
-        kinetic, drift, _, _ = run_energy_balance(model, data, total, 10.0)
-        out[mode] = {
-            "largest_kinetic_J": kinetic,
-            "drift_J": drift,
-            "drift_pct_of_kinetic": 100 * drift / kinetic,
-        }
-        print(
-            f"{mode}: D = 4, RK4 0.1 ms, 10 s undamped: drift {100 * drift / kinetic:.3f} % of {kinetic:.3f} J"
-        )
-        model, data, total = released_arm(arm.DEFAULT_DISKS, 1e-3, 1.0, mode=mode)
-        _, _, lost, work = run_energy_balance(model, data, total, 3.0)
-        out[mode]["damped_lost_J"], out[mode]["damped_work_J"] = lost, work
-        print(f"{mode}: default D, dt, damping: lost {lost:.5f} J, damping work {work:.5f} J")
+    for label in args.arms:
+        sections, orientation, disks = ENERGY_ARMS[label]
+        D = args.disks or disks or arm.DEFAULT_DISKS
+        for mode in args.modes:
+            key = f"{label} {orientation} D={D} {mode}"
+            spec, model, data, total = released(sections, orientation, D, mode, damped=False)
+            choice = timestep.recorded_timestep(model)
+            kinetic, drift, _, _, wall = balance(model, data, total, args.duration, 10, key + " undamped")
+            row = {
+                "undamped_integrator": choice.integrator,
+                "undamped_timestep_s": model.opt.timestep,
+                "omega_max_rad_s": choice.omega_max_rad_s,
+                "omega_max_dt": choice.omega_max_rad_s * model.opt.timestep,
+                "duration_s": args.duration,
+                "largest_kinetic_J": kinetic,
+                "drift_J": drift,
+                "drift_pct_of_kinetic": 100 * drift / kinetic,
+                "undamped_wall_s": wall,
+            }
+            print(
+                f"{key}: undamped, {choice.integrator} {model.opt.timestep * 1e3:g} ms (omega_max dt "
+                f"{row['omega_max_dt']:.2f}), {args.duration:g} s: drift {row['drift_pct_of_kinetic']:.3f} % of "
+                f"{kinetic:.3f} J ({wall:.0f} s wall)", flush=True,
+            )  # fmt: skip
+            spec, model, data, total = released(sections, orientation, D, mode, damped=True)
+            _, _, lost, work, _ = balance(model, data, total, 3.0, 1, key + " damped")
+            row.update({
+                "damped_integrator": timestep.recorded_timestep(model).integrator,
+                "damped_timestep_s": model.opt.timestep, "damped_lost_J": lost, "damped_work_J": work,
+                "damped_lost_over_work_minus_1_pct": 100 * (lost / work - 1),
+            })  # fmt: skip
+            print(f"{key}: default damping, {row['damped_integrator']} {model.opt.timestep * 1e3:g} ms, 3 s: "
+                  f"lost {lost:.5f} J, damping work {work:.5f} J ({row['damped_lost_over_work_minus_1_pct']:+.3f} %)",
+                  flush=True)  # fmt: skip
+            out[key] = row
     return out
 
 
@@ -227,7 +336,11 @@ def main(argv=None) -> int:
     p.add_argument("--sets", type=int, default=200)
     p = sub.add_parser("convergence")
     p.add_argument("--disks", type=int, nargs="+", default=[4, 8, 16, 32])
-    sub.add_parser("energy")
+    p = sub.add_parser("energy")
+    p.add_argument("--arms", nargs="+", choices=sorted(ENERGY_ARMS), default=list(ENERGY_ARMS))
+    p.add_argument("--modes", nargs="+", choices=("segmented", "pcc"), default=["segmented", "pcc"])
+    p.add_argument("--disks", type=int, default=None, help="D (default: the arm's default)")
+    p.add_argument("--duration", type=float, default=10.0, help="undamped run, simulated s")
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     result = {"speed": speed, "sweep": sweep, "convergence": convergence, "energy": energy}[args.command](
@@ -236,6 +349,9 @@ def main(argv=None) -> int:
     doc = json.loads(args.out.read_text()) if args.out.exists() else {}
     if "benchmark" in doc:  # the former single-benchmark layout
         doc = {}
+    if args.command == "energy":  # one key per arm, kept across runs of different arms
+        kept = {k: v for k, v in doc.get("energy", {}).items() if k not in ("segmented", "pcc")}  # old layout
+        result = {**kept, **result}
     doc[args.command] = result
     doc["environment"] = {
         "mujoco": mujoco.__version__,

@@ -18,6 +18,7 @@ import numpy as np  # noqa: E402
 
 from efam_mujoco import arm  # noqa: E402
 from efam_mujoco.arm import continuum  # noqa: E402
+from efam_mujoco.files import save_figure  # noqa: E402
 
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
 CASES = (
@@ -62,7 +63,8 @@ def main(argv=None) -> int:
         ax.plot(x, z, "-", color=colour, lw=2.5, alpha=0.45, label=f"{label}: continuum reference")
         disks = np.array(disks)
         ax.plot(disks[:, 0], disks[:, 2], "o", ms=3.5, color=colour,
-                label=f"MuJoCo, D = 16 disks per section (tip off by {100 * error:.2f} % of length)")  # fmt: skip
+                label=f"MuJoCo, D = {spec.sections[0].disks} disks per section (tip off by {100 * error:.2f} % "
+                      "of length)")  # fmt: skip
     ax.plot([0], [0], "ks", ms=8, label="base")
     ax.set_aspect("equal")
     ax.grid(alpha=0.3)
@@ -72,7 +74,7 @@ def main(argv=None) -> int:
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=1, frameon=False)
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=130)
+    save_figure(fig, args.out, dpi=130)
     print(f"wrote {args.out}")
     return 0
 

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 from efam_mujoco import arm, plugin  # noqa: E402
 from efam_mujoco.arm.continuum import solve_arm_spec  # noqa: E402
+from efam_mujoco.files import save_figure  # noqa: E402
 
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
 STEPS = ((0.5, "all", 310e3), (3.0, "first", 517.1e3))  # (time, which muscles, pressure)
@@ -96,10 +97,13 @@ def main(argv=None) -> int:
     ax_x.set_xlabel("time (s)")
     ax_x.set_ylabel("tip position (mm)")
     ax_x.legend(fontsize=8, loc="center", bbox_to_anchor=(0.38, 0.55))
-    fig.suptitle("3x3 FAM1 arm, hanging: pressure steps (tau = 50 ms, dt = 1 ms)", fontsize=11)
+    fig.suptitle(
+        f"3x3 FAM1 arm, hanging: pressure steps (tau = 50 ms, dt = {model.opt.timestep * 1e3:g} ms)",
+        fontsize=11,
+    )
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=110)
+    save_figure(fig, args.out, dpi=110)
     print(f"final tip {np.round(tip[-1] * 1e3, 1)} mm; wrote {args.out}")
     return 0
 

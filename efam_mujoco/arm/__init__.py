@@ -10,6 +10,7 @@ pressure; the joints between disks allow extension and bending and nothing else.
 * :mod:`.spec`: :class:`SectionSpec`, :class:`ArmSpec`, the shipped arms;
 * :mod:`.masses`: the mass table (paper Table 1);
 * :mod:`.builder`: the MuJoCo model and helpers to read it;
+* :mod:`.timestep`: the time step and integrator, derived from the arm's physics;
 * :mod:`.continuum`: the continuum (Kirchhoff rod) reference, independent of MuJoCo;
 * :mod:`.pcc`: the piecewise-constant-curvature mode;
 * :mod:`.cli`: ``efam arm``.

@@ -32,6 +32,7 @@ from ..files import write_text_atomic
 from ..muscle import Muscle
 from .masses import FITTING_LENGTH_M, FITTING_RADIUS_M
 from .spec import ORIENTATIONS, ArmSpec, SectionSpec, arm_1x3, arm_3x3
+from .timestep import ROUND_TIMESTEPS_S, apply_timestep, default_integrator
 
 _MUSCLE_RGBA = ((0.85, 0.33, 0.1, 1), (0.1, 0.45, 0.75, 1), (0.2, 0.6, 0.25, 1), (0.55, 0.3, 0.65, 1))
 
@@ -126,6 +127,8 @@ def build_spec(arm: ArmSpec, muscles: str = "plugin") -> mujoco.MjSpec:
         if arm.mode == "pcc":
             _add_pcc_coupling(spec, arm, j, section)
     _finish(spec, arm, parent)
+    plugin.load()
+    apply_timestep(spec, arm.max_pressure_Pa, arm.timestep_s)
     return spec
 
 
@@ -133,8 +136,8 @@ def _new_spec(arm: ArmSpec) -> mujoco.MjSpec:
     spec = mujoco.MjSpec()
     spec.modelname = arm.name
     spec.compiler.degree = False  # every angle below is in radians
-    spec.option.timestep = arm.timestep_s
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.timestep = ROUND_TIMESTEPS_S[-1]  # set by apply_timestep from the built arm
+    spec.option.integrator = default_integrator(arm.axial_viscosity_N_s > 0 or arm.bend_viscosity_N_m2_s > 0)
     spec.option.gravity = [0.0, 0.0, -9.81 if arm.gravity else 0.0]
     spec.option.disableflags = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)  # the arm has no contacts
     spec.visual.global_.offwidth, spec.visual.global_.offheight = 960, 720
@@ -253,40 +256,51 @@ def _add_muscles(spec, arm: ArmSpec, j: int, section: SectionSpec, affine: bool,
             actuator.plugin = _shared_instance(spec, muscle, len(segments))
 
 
-#: PCC mode: coupling springs this many times stiffer than the muscles (at rest, zero pressure)
-PCC_STIFFNESS_RATIO = 10.0
-#: PCC mode: relaxation time of the coupling springs' dampers (their damping = stiffness x this)
-PCC_RELAXATION_S = 0.004
+#: PCC mode: a section's departures from constant curvature are this many times stiffer than
+#: the muscles make them (measured in docs/arms.md: the tip's distance from the exact
+#: constant-curvature equilibrium falls as 1 / ratio; the fastest mode grows as sqrt(ratio))
+PCC_STIFFNESS_RATIO = 30.0
 
 
 def _add_pcc_coupling(spec, arm: ArmSpec, j: int, section: SectionSpec):
-    """PCC: every half-link of the section extends like the next and every link bends like the
-    next, held by conservative springs on the differences (fixed tendons with stiffness), a
-    penalty (no constraint: nothing numerical decides the rest pose). The springs are
-    ``PCC_STIFFNESS_RATIO`` times stiffer than the muscles they couple, and damped with the
-    time constant ``PCC_RELAXATION_S`` (their damping counts in the damping work)."""
+    """PCC: every half-link of the section extends like the section's mean and every link bends
+    like the mean, held by conservative springs on the departures q_k - mean(q), a penalty (no
+    constraint: nothing numerical decides the rest pose). Their energy (1/2) k sum (q_k - mean)^2
+    makes every departure from constant curvature, smooth or zig-zag, ``PCC_STIFFNESS_RATIO``
+    times stiffer than the muscles make a single joint (springs between neighbours would resist
+    the smooth departures gravity causes only (pi / D)^2 as much). It is built as
+    (1/2) k sum (q_k - q_rest)^2 (joint springs) minus (1/2) k N (mean - q_rest)^2 (a fixed
+    tendon over the N joints with negative stiffness): N + 1 terms instead of N tendons of N
+    joints. The dampers, the same way, are ``PCC_STIFFNESS_RATIO`` times the bundle's viscous
+    damping of the same joints (the coupling relaxes like the bundle, vanishes with the
+    viscosities, and its damping counts in the damping work)."""
     D = section.disks
     k_muscles = sum(-(m.push(0.0, m.rest_length_m * 1.000001) - m.push(0.0, m.rest_length_m * 0.999999))
                     / (2e-6 * m.rest_length_m) for m in section.muscles)  # fmt: skip
-    axial = PCC_STIFFNESS_RATIO * 2 * D * k_muscles  # a half-link's muscles
+    half = section.rest_length_m / (2 * D)
     offsets = section.offsets_m()
-    bend = {
-        "x": PCC_STIFFNESS_RATIO * D * k_muscles / len(section.muscles) * float(np.sum(offsets[:, 1] ** 2)),
-        "y": PCC_STIFFNESS_RATIO * D * k_muscles / len(section.muscles) * float(np.sum(offsets[:, 0] ** 2)),
-    }
-    extensions = [f"s{j}d{k}_ext_{e}" for k in range(1, D + 1) for e in ("a", "b")]
-    pairs = [(a, b, axial) for a, b in zip(extensions[:-1], extensions[1:])]
-    for axis in ("x", "y"):
-        pairs += [(f"s{j}d{k}_bend_{axis}", f"s{j}d{k + 1}_bend_{axis}", bend[axis]) for k in range(1, D)]
-    for a, b, stiffness in pairs:
-        tendon = spec.add_tendon(
-            name=f"pcc_{a}",
-            stiffness=stiffness,
-            damping=stiffness * PCC_RELAXATION_S,
-            springlength=[0.0, 0.0],
+    mean_k = k_muscles / len(section.muscles)
+    groups = [  # name, joints, rest value, a joint's stiffness from the muscles, its viscous damping
+        ("ext", [f"s{j}d{k}_ext_{e}" for k in range(1, D + 1) for e in ("a", "b")], half, 2 * D * k_muscles,
+         arm.axial_viscosity_N_s / half),
+        ("bend_x", [f"s{j}d{k}_bend_x" for k in range(1, D + 1)], 0.0,
+         D * mean_k * float(np.sum(offsets[:, 1] ** 2)), arm.bend_viscosity_N_m2_s / (2 * half)),
+        ("bend_y", [f"s{j}d{k}_bend_y" for k in range(1, D + 1)], 0.0,
+         D * mean_k * float(np.sum(offsets[:, 0] ** 2)), arm.bend_viscosity_N_m2_s / (2 * half)),
+    ]  # fmt: skip
+    for name, joints, rest, stiffness, damping in groups:
+        k, c = PCC_STIFFNESS_RATIO * stiffness, PCC_STIFFNESS_RATIO * damping
+        for joint in joints:
+            element = spec.joint(joint)
+            element.stiffness = [k, *element.stiffness[1:]]  # (linear, polynomial terms)
+            element.springref = rest
+            element.damping = [element.damping[0] + c, *element.damping[1:]]
+        count = len(joints)
+        mean = spec.add_tendon(
+            name=f"pcc_s{j}_{name}", stiffness=-k * count, damping=-c * count, springlength=[rest, rest]
         )
-        tendon.wrap_joint(a, 1.0)
-        tendon.wrap_joint(b, -1.0)
+        for joint in joints:
+            mean.wrap_joint(joint, 1.0 / count)
 
 
 def _add_actuator(spec, arm, name, tendon):

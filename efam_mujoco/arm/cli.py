@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
 
 import mujoco
@@ -16,6 +17,7 @@ from ..musclefile import load_muscle
 from .builder import MODELS_DIR, arm_xml, build_model, static_equilibrium, tip_in_base, write_models
 from .continuum import solve_arm_spec
 from .spec import DEFAULT_DISKS, MAX_TESTED_PRESSURE_PA, ORIENTATIONS, ArmSpec, SectionSpec
+from .timestep import NUMERIC_NAME, recorded_timestep
 
 
 def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force_N=(0.0, 0.0, 0.0)) -> dict:
@@ -24,6 +26,7 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
     arm's own weight and payload (``tip_force_N``: an extra load on the continuum only)."""
     model = build_model(arm)
     data = mujoco.MjData(model)
+    choice = recorded_timestep(model)
     settled = static_equilibrium(model, data, [p for section in pressures_Pa for p in section])
     simulated = tip_in_base(model, data)
     state = solve_arm_spec(arm, [list(p) for p in pressures_Pa], tip_force_N=tip_force_N)
@@ -37,6 +40,7 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
             100 * np.linalg.norm(simulated - predicted) / arm.rest_length_m
         ),
         "section_bend_deg": [float(np.degrees(sec.bend_angle_rad)) for sec in state.sections],
+        "timestep": {**asdict(choice), "description": choice.describe()},
     }
 
 
@@ -50,6 +54,7 @@ ARGUMENT_BOUNDS = {
     "radius_mm": (1.0, 500.0, "mm"),
     "payload_kg": (0.0, 50.0, "kg"),
     "pressure_lag_s": (0.0, 10.0, "s"),
+    "timestep_ms": (1e-4, 100.0, "ms"),
     "pressures_kPa": (0.0, MAX_TESTED_PRESSURE_PA / 1e3, "kPa"),
 }
 
@@ -92,6 +97,10 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mode", choices=("segmented", "pcc"), default="segmented", help="arm model (default segmented)"
     )
+    parser.add_argument(
+        "--timestep-ms", type=float, default=None,
+        help="physics time step, ms (default: derived from the arm's stiffness, masses and damping)",
+    )  # fmt: skip
     parser.add_argument("--xml", type=Path, help="write the arm's MJCF to this file")
     parser.add_argument(
         "--pressures-kPa", type=float, nargs="+",
@@ -128,6 +137,7 @@ def arm_from_args(args) -> ArmSpec:
         gravity=not args.no_gravity,
         mode=args.mode,
         name=f"arm_{args.sections}x{m}",
+        timestep_s=None if args.timestep_ms is None else args.timestep_ms / 1e3,
     )
 
 
@@ -139,7 +149,7 @@ def _run(args) -> int:
     spec = arm_from_args(args)
     if args.xml:
         write_text_atomic(args.xml, arm_xml(spec))
-        print(f"wrote {args.xml}")
+        print(f"wrote {args.xml} (its time step: custom numeric {NUMERIC_NAME!r})")
     if args.pressures_kPa:
         count = sum(len(s.muscles) for s in spec.sections)
         pressures = np.asarray(args.pressures_kPa) * 1e3
@@ -152,6 +162,7 @@ def _run(args) -> int:
             f"continuum reference {np.round(1e3 * np.array(result['tip_continuum_m']), 2)}; "
             f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
         )
+        print(result["timestep"]["description"])
         if not result["settled"]:
             print("warning: the MuJoCo arm's static equilibrium did not converge", file=sys.stderr)
         if args.json:

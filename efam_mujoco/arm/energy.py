@@ -60,6 +60,9 @@ def damping_power(model: mujoco.MjModel, data: mujoco.MjData) -> float:
 
 
 def spring_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """Energy in the tendon springs (the PCC mode's coupling springs; none in the segmented arm)."""
+    """Energy in the joint and tendon springs (the PCC mode's coupling springs; none in the
+    segmented arm). Hinge and slide joints only (the arm has no others)."""
     stretch = data.ten_length - model.tendon_lengthspring[:, 0]
-    return 0.5 * float(np.sum(model.tendon_stiffness * stretch**2))
+    joints = model.jnt_qposadr
+    turn = data.qpos[joints] - model.qpos_spring[joints]
+    return 0.5 * float(np.sum(model.tendon_stiffness * stretch**2) + np.sum(model.jnt_stiffness * turn**2))

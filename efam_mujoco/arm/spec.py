@@ -135,7 +135,9 @@ class ArmSpec:
     curvature (a piece of length l bending at dtheta/dt resists with eta_b (dtheta/dt) / l). They
     are the only dissipation in the model. ``mode="segmented"`` (default) is the physical model;
     ``mode="pcc"`` holds every section at constant curvature (an approximation for model-based
-    control; see docs/arms.md).
+    control; see docs/arms.md). ``timestep_s`` None (default): the builder derives the step from
+    the arm's stiffness, masses and damping (:mod:`efam_mujoco.arm.timestep`); a given step is
+    checked against the arm's stability limit.
     """
 
     sections: tuple[SectionSpec, ...]
@@ -144,7 +146,7 @@ class ArmSpec:
     max_pressure_Pa: float = MAX_TESTED_PRESSURE_PA
     payload_kg: float = 0.0
     gravity: bool = True
-    timestep_s: float = 1e-3
+    timestep_s: float | None = None
     axial_viscosity_N_s: float = 6.8
     bend_viscosity_N_m2_s: float = 0.05
     hold_tip: bool = False  # weld the tip plate where it is at rest (blocked-force checks)
@@ -165,12 +167,13 @@ class ArmSpec:
             "pressure_tau_s": self.pressure_tau_s >= 0,
             "max_pressure_Pa": self.max_pressure_Pa > 0,
             "payload_kg": self.payload_kg >= 0,
-            "timestep_s": self.timestep_s > 0,
+            "timestep_s": self.timestep_s is None or self.timestep_s > 0,
             "axial_viscosity_N_s": self.axial_viscosity_N_s >= 0,
             "bend_viscosity_N_m2_s": self.bend_viscosity_N_m2_s >= 0,
         }
         for key, ok in checks.items():
-            if not (math.isfinite(getattr(self, key)) and ok):
+            value = getattr(self, key)
+            if not ((value is None or math.isfinite(value)) and ok):
                 raise ValueError(f"arm: {key} is invalid: {getattr(self, key)!r}")
 
     @property
