@@ -305,7 +305,7 @@ def _shared_instance(spec: mujoco.MjSpec, muscle: Muscle, segments: int):
     """The plugin instance for ``muscle``'s constants, made once per distinct muscle: an instance
     evaluates all its actuators (and their segments) as one vectorised batch, and MuJoCo visits
     every instance each step whatever it computes."""
-    config = plugin.plugin_config(muscle, segments=segments)
+    config = plugin.plugin_config(muscle, segments=segments, arc_geometry=segments > 1)
     for existing in spec.plugins:
         if existing.plugin_name == plugin.PLUGIN_NAME and dict(existing.config) == config:
             return existing
@@ -474,8 +474,126 @@ def segment_tendons(model: mujoco.MjModel, name: str) -> np.ndarray:
 
 
 def muscle_segment_lengths(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
-    """Current length of each segment of muscle ``name``, m."""
-    return data.ten_length[segment_tendons(model, name)].copy()
+    """Current length of each segment of muscle ``name``, m: the length the plugin gives the
+    segment (its arc length, see :class:`SegmentLengths`)."""
+    return SegmentLengths(model, [name])(data)
+
+
+# ---------------------------------------------------------------- the segments' arc geometry
+#
+# The same geometry as the plugin's (efam_muscle.c, "arc geometry"), written from the same
+# derivation: a link bends by the universal joint's swing (angle theta about the axis along
+# sigma) and twists by tau; the bundle's disks are the swing-transported frames, so a muscle at
+# offset (x, y) sits at Rz(-T) (x, y) in the MuJoCo frame of its link's proximal disk (T: the
+# twists of all proximal links), and each half-link's arc at the muscle has length
+# e phi(theta) + (y' sigma_x - x' sigma_y) / 2, phi(t) = (t / 2) / tan(t / 2).
+
+_SERIES_BELOW = 0.25  # phi and t / sin t by their series in t^2 (to t^12) below this angle
+_PHI_SERIES = (1.0, -1 / 12, -1 / 720, -1 / 30240, -1 / 1209600, -1 / 47900160, -691 / 1307674368000)
+_T_OVER_SIN_SERIES = (1.0, 1 / 6, 7 / 360, 31 / 15120, 127 / 604800, 73 / 3421440, 1414477 / 653837184000)
+
+
+def _rotates(model, joint) -> bool:
+    return model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_SLIDE
+
+
+def _link_hinges(model: mujoco.MjModel, body: int):
+    """(hinge about x, hinge about y) if ``body`` is a link's node (two such hinges, otherwise
+    only slides); None if it does not turn (slides or no joints); False for anything else."""
+    if body <= 0:
+        return False
+    joints = range(model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body])
+    turning = [j for j in joints if _rotates(model, j)]
+    if not turning:
+        return None
+    hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
+    x = [j for j in turning if model.jnt_type[j] == hinge and list(model.jnt_axis[j]) == [1, 0, 0]]
+    y = [j for j in turning if model.jnt_type[j] == hinge and list(model.jnt_axis[j]) == [0, 1, 0]]
+    return (x[0], y[0]) if len(turning) == 2 and len(x) == len(y) == 1 else False
+
+
+def _series(coefficients, t2):
+    out = np.zeros_like(t2)
+    for c in coefficients[::-1]:
+        out = out * t2 + c
+    return out
+
+
+class SegmentLengths:
+    """The lengths the plugin gives the segments of muscles ``names`` (m, concatenated in that
+    order): each segment's arc length in its half-link when the muscle's plugin instance has
+    ``arc_geometry`` on (the arms :func:`build_spec` makes: from ``data.qpos``), else its
+    tendon's length (``data.ten_length``: after mj_forward). Parses the model once."""
+
+    def __init__(self, model: mujoco.MjModel, names):
+        tendons = [segment_tendons(model, n) for n in names]
+        arc = []
+        for name, t in zip(names, tendons):
+            instance = model.actuator_plugin[model.actuator(name).id]
+            config = plugin.instance_config(model, instance) if instance >= 0 and t.size else {}
+            arc.append(np.full(t.size, config.get("arc_geometry") == "1"))
+        self.tendons = np.concatenate(tendons).astype(int) if tendons else np.zeros(0, int)
+        self.arc = np.concatenate(arc) if arc else np.zeros(0, bool)
+        links = [b for b in range(model.nbody) if _link_hinges(model, b)]
+        index = {b: k for k, b in enumerate(links)}
+        hinges = [_link_hinges(model, b) for b in links]
+        self.qpos_a = np.array([model.jnt_qposadr[hx] for hx, _ in hinges], dtype=int)
+        self.qpos_b = np.array([model.jnt_qposadr[hy] for _, hy in hinges], dtype=int)
+        self.x_first = np.array([hx < hy for hx, hy in hinges], dtype=bool)
+        # proximal[k, j]: link j is proximal to link k (its twist turns link k's muscles)
+        self.proximal = np.zeros((len(links), len(links)))
+        for k, b in enumerate(links):
+            p = model.body_parentid[b]
+            while _link_hinges(model, p) is not False:
+                if p in index:
+                    self.proximal[k, index[p]] = 1.0
+                p = model.body_parentid[p]
+        rows = np.array([self._segment(model, t, index) for t in self.tendons[self.arc]]).reshape(-1, 4)
+        self.link, self.slide = rows[:, 0].astype(int), rows[:, 1].astype(int)
+        self.x, self.y = rows[:, 2], rows[:, 3]
+
+    @staticmethod
+    def _segment(model, tendon, index):
+        """(link index, slide qpos address, x, y) of a segment tendon e + (y a - x b) / 2."""
+        slide = coef_x = coef_y = node = None
+        for w in range(model.tendon_adr[tendon], model.tendon_adr[tendon] + model.tendon_num[tendon]):
+            j, c = model.wrap_objid[w], model.wrap_prm[w]
+            if not _rotates(model, j):
+                slide = model.jnt_qposadr[j]
+            elif list(model.jnt_axis[j]) == [1, 0, 0]:
+                coef_x, node = c, model.jnt_bodyid[j]
+            else:
+                coef_y = c
+        return index[node], slide, -2.0 * coef_y, 2.0 * coef_x
+
+    def __call__(self, data: mujoco.MjData) -> np.ndarray:
+        """The segment lengths in state ``data``."""
+        out = data.ten_length[self.tendons]
+        if self.arc.any():
+            out[self.arc] = self.arc_lengths(data.qpos)
+        return out
+
+    def arc_lengths(self, qpos) -> np.ndarray:
+        """The arc-geometry segments' lengths at joint positions ``qpos``."""
+        qpos = np.asarray(qpos)
+        a, b = qpos[self.qpos_a], qpos[self.qpos_b]
+        sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
+        u = np.where(self.x_first, [sa * cb, sb], [sa, ca * sb])  # (2, links)
+        sin_theta = np.hypot(u[0], u[1])
+        theta = np.arctan2(sin_theta, ca * cb)
+        small = theta < _SERIES_BELOW
+        safe = np.where(small, 1.0, theta)
+        t2 = theta**2
+        phi = np.where(small, _series(_PHI_SERIES, t2), 0.5 * safe / np.tan(0.5 * safe))
+        ratio = np.where(small, _series(_T_OVER_SIN_SERIES, t2), safe / np.where(small, 1.0, sin_theta))
+        sigma = ratio * u
+        twist = np.where(self.x_first, 1.0, -1.0) * 2.0 * np.arctan2(np.sin(a / 2) * np.sin(b / 2),
+                                                                    np.cos(a / 2) * np.cos(b / 2))  # fmt: skip
+        T = (self.proximal @ twist)[self.link]
+        x = np.cos(T) * self.x + np.sin(T) * self.y
+        y = -np.sin(T) * self.x + np.cos(T) * self.y
+        k = self.link
+        return qpos[self.slide] * phi[k] + 0.5 * (y * sigma[0, k] - x * sigma[1, k])
 
 
 __all__ = [
@@ -490,6 +608,7 @@ __all__ = [
     "muscle_pressures",
     "muscle_segment_lengths",
     "node_inertias",
+    "SegmentLengths",
     "segment_coefficients",
     "segment_tendons",
     "settle",
