@@ -486,8 +486,14 @@ def muscle_segment_lengths(model: mujoco.MjModel, data: mujoco.MjData, name: str
 # sigma) and twists by tau; the bundle's disks are the swing-transported frames, so a muscle at
 # offset (x, y) sits at Rz(-T) (x, y) in the MuJoCo frame of its link's proximal disk (T: the
 # twists of all proximal links), and each half-link's arc at the muscle has length
-# e phi(theta) + (y' sigma_x - x' sigma_y) / 2, phi(t) = (t / 2) / tan(t / 2).
+# e phi(theta) + (y' sigma_x - x' sigma_y) / 2, phi(t) = (t / 2) / tan(t / 2) (blended into
+# the linear e + (y' a - x' b) / 2 for bends beyond ARC_EXACT_UP_TO_RAD).
 
+#: up to this bend of one link (rad) a segment's length is its arc's; beyond, it blends (C2 in
+#: the bend) into the linear tendon geometry, fully at ARC_LINEAR_FROM_RAD (the swing is singular
+#: at pi; a link bent that far is far outside the muscles' admissible lengths)
+ARC_EXACT_UP_TO_RAD = 2.0
+ARC_LINEAR_FROM_RAD = 2.5
 _SERIES_BELOW = 0.25  # phi and t / sin t by their series in t^2 (to t^12) below this angle
 _PHI_SERIES = (1.0, -1 / 12, -1 / 720, -1 / 30240, -1 / 1209600, -1 / 47900160, -691 / 1307674368000)
 _T_OVER_SIN_SERIES = (1.0, 1 / 6, 7 / 360, 31 / 15120, 127 / 604800, 73 / 3421440, 1414477 / 653837184000)
@@ -581,19 +587,24 @@ class SegmentLengths:
         u = np.where(self.x_first, [sa * cb, sb], [sa, ca * sb])  # (2, links)
         sin_theta = np.hypot(u[0], u[1])
         theta = np.arctan2(sin_theta, ca * cb)
+        blend = np.clip((theta - ARC_EXACT_UP_TO_RAD) / (ARC_LINEAR_FROM_RAD - ARC_EXACT_UP_TO_RAD), 0.0, 1.0)
+        weight = 1.0 - blend**3 * (10.0 - 15.0 * blend + 6.0 * blend**2)  # 1: the arc, 0: linear
         small = theta < _SERIES_BELOW
-        safe = np.where(small, 1.0, theta)
+        safe = np.where(small | (weight == 0), 1.0, theta)
+        safe_sin = np.where(small | (weight == 0), 1.0, sin_theta)
         t2 = theta**2
         phi = np.where(small, _series(_PHI_SERIES, t2), 0.5 * safe / np.tan(0.5 * safe))
-        ratio = np.where(small, _series(_T_OVER_SIN_SERIES, t2), safe / np.where(small, 1.0, sin_theta))
+        ratio = np.where(small, _series(_T_OVER_SIN_SERIES, t2), safe / safe_sin)
         sigma = ratio * u
         twist = np.where(self.x_first, 1.0, -1.0) * 2.0 * np.arctan2(np.sin(a / 2) * np.sin(b / 2),
                                                                     np.cos(a / 2) * np.cos(b / 2))  # fmt: skip
-        T = (self.proximal @ twist)[self.link]
+        T = (self.proximal @ (weight * twist))[self.link]
         x = np.cos(T) * self.x + np.sin(T) * self.y
         y = -np.sin(T) * self.x + np.cos(T) * self.y
-        k = self.link
-        return qpos[self.slide] * phi[k] + 0.5 * (y * sigma[0, k] - x * sigma[1, k])
+        k, e = self.link, qpos[self.slide]
+        arc = e * phi[k] + 0.5 * (y * sigma[0, k] - x * sigma[1, k])
+        linear = e + 0.5 * (y * a[k] - x * b[k])
+        return weight[k] * arc + (1.0 - weight[k]) * linear
 
 
 __all__ = [
@@ -628,11 +639,24 @@ def generalized_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
 def static_equilibrium(
     model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, settle_s: float = 1.0, tol_N: float = 1e-9
 ) -> bool:
-    """Put the arm at rest under constant pressures: a short settle to reach the branch the
-    arm falls into, then Newton on qpos (finite-difference stiffness) until the net generalized
-    force is below ``tol_N``. The pressure states are set to the pressures. Returns whether it
-    converged (the state is left at the best point found)."""
-    settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0)
+    """Put the arm at rest under constant pressures: a short quenched settle to reach the branch
+    the arm falls into (dynamics with every velocity zeroed whenever the kinetic energy falls:
+    a descent to the nearest minimum of the potential energy, whatever the model's damping),
+    then Newton on qpos (finite-difference stiffness) until the net generalized force is below
+    ``tol_N``. The pressure states are set to the pressures. Returns whether it converged (the
+    state is left at the best point found)."""
+    data.ctrl[:] = np.ravel(pressures_Pa)
+    end, kinetic, momentum = data.time + settle_s, 0.0, np.zeros(model.nv)
+    while data.time < end - 1e-12:
+        mujoco.mj_step(model, data)
+        mujoco.mj_mulM(model, data, momentum, data.qvel)
+        now = 0.5 * float(data.qvel @ momentum)
+        if now < kinetic:
+            data.qvel[:] = 0.0
+            now = 0.0
+        kinetic = now
+    if not np.all(np.isfinite(data.qpos)):
+        raise FloatingPointError(f"arm state not finite at t = {data.time:.3f} s")
     data.ctrl[:] = np.ravel(pressures_Pa)
     lagged = np.flatnonzero(model.actuator_actadr >= 0)
     data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]

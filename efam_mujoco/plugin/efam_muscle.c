@@ -1298,18 +1298,33 @@ static ArcAngle arc_angle(double sin_theta, double cos_theta) {
   return r;
 }
 
-// Per link: its swing (sigma, and the pieces of its derivatives), its twist and derivatives.
+// Beyond ARC_EXACT_UP_TO rad of bend in one link (115 deg: a section at D disks bends up to
+// D x that exactly) a segment blends into the linear geometry l = e + (y' a - x' b) / 2 (and
+// the link's twist to 0), fully at ARC_LINEAR_FROM: the swing is singular at theta = pi (its
+// direction is undefined, the tangent length e no longer changes the arc, tan(theta/2)
+// diverges), and a link bent that far is far outside the muscles' admissible lengths anyway.
+// The blend weight is C2 in theta, so the segment lengths stay smooth and the forces
+// conservative.
+#define ARC_EXACT_UP_TO 2.0
+#define ARC_LINEAR_FROM 2.5
+
+// Per link: its swing (sigma, and the pieces of its derivatives), its twist and derivatives,
+// the blend weight.
 typedef struct {
+  double a, b;
   double phi, v, s, w;
   double sigma[2], u[2], du_da[2], du_db[2];
   double theta_a, theta_b;  // sin a cos b and cos a sin b: d theta / d(a, b) times sin theta
-  double tau, tau_a, tau_b;
+  double tau, tau_a, tau_b; // the link's twist, blended
+  double weight, weight_a, weight_b;  // 1: arc geometry, 0: linear; its derivatives in (a, b)
   double twist_before;      // T: the twists of the proximal links
 } ArcLinkState;
 
 static void arc_link_state(const ArcLink* L, const mjtNum* qpos, ArcLinkState* st) {
   double a = qpos[L->qpos_a], b = qpos[L->qpos_b];
   double sa = sin(a), ca = cos(a), sb = sin(b), cb = cos(b);
+  st->a = a;
+  st->b = b;
   if (L->x_first) {  // Q z = (sin b, -sin a cos b, cos a cos b)
     st->u[0] = sa * cb;
     st->u[1] = sb;
@@ -1325,37 +1340,82 @@ static void arc_link_state(const ArcLink* L, const mjtNum* qpos, ArcLinkState* s
     st->du_db[0] = 0.0;
     st->du_db[1] = ca * cb;
   }
-  ArcAngle ang = arc_angle(sqrt(st->u[0] * st->u[0] + st->u[1] * st->u[1]), ca * cb);
+  st->theta_a = sa * cb;
+  st->theta_b = ca * sb;
+  double sin_theta = sqrt(st->u[0] * st->u[0] + st->u[1] * st->u[1]);
+  double theta = atan2(sin_theta, ca * cb);
+  st->weight = 1.0;
+  st->weight_a = st->weight_b = 0.0;
+  if (theta >= ARC_LINEAR_FROM) {
+    st->weight = 0.0;
+  } else if (theta > ARC_EXACT_UP_TO) {  // 1 - smootherstep(x), and its derivative along theta
+    double width = ARC_LINEAR_FROM - ARC_EXACT_UP_TO, x = (theta - ARC_EXACT_UP_TO) / width;
+    st->weight = 1.0 - x * x * x * (x * (6.0 * x - 15.0) + 10.0);
+    double slope = -30.0 * x * x * (1.0 - x) * (1.0 - x) / width / sin_theta;
+    st->weight_a = slope * st->theta_a;
+    st->weight_b = slope * st->theta_b;
+  }
+  st->tau = st->tau_a = st->tau_b = 0.0;
+  st->phi = 1.0;
+  st->v = st->s = st->w = 0.0;
+  st->sigma[0] = st->sigma[1] = 0.0;
+  if (st->weight == 0.0) {
+    return;
+  }
+  ArcAngle ang = arc_angle(sin_theta, ca * cb);
   st->phi = ang.phi;
   st->v = ang.v;
   st->s = ang.s;
   st->w = ang.w;
   st->sigma[0] = ang.s * st->u[0];
   st->sigma[1] = ang.s * st->u[1];
-  st->theta_a = sa * cb;
-  st->theta_b = ca * sb;
   double sha = sin(0.5 * a), cha = cos(0.5 * a), shb = sin(0.5 * b), chb = cos(0.5 * b);
   double p = sha * shb, q = cha * chb, sign = L->x_first ? 1.0 : -1.0;
-  double r2 = p * p + q * q;
-  st->tau = sign * 2.0 * atan2(p, q);
-  st->tau_a = sign * 0.5 * sb / r2;
-  st->tau_b = sign * 0.5 * sa / r2;
+  double r2 = p * p + q * q;  // cos^2(theta / 2)
+  double tau = sign * 2.0 * atan2(p, q);
+  st->tau = st->weight * tau;
+  st->tau_a = st->weight * sign * 0.5 * sb / r2 + st->weight_a * tau;
+  st->tau_b = st->weight * sign * 0.5 * sa / r2 + st->weight_b * tau;
 }
 
 // Length of a segment and its derivatives (d/de, d/da, d/db, d/dT).
 static double arc_segment_length(const ArcSegment* sg, const ArcLinkState* st, double e, double grad[4]) {
   double cT = cos(st->twist_before), sT = sin(st->twist_before);
   double x = cT * sg->x + sT * sg->y, y = -sT * sg->x + cT * sg->y;  // Rz(-T) (x, y)
+  // the linear geometry (in the bundle's frame too)
+  double linear = e + 0.5 * (y * st->a - x * st->b);
+  double lin_grad[4] = {1.0, 0.5 * y, -0.5 * x, -0.5 * (x * st->a + y * st->b)};
+  double W = st->weight;
+  if (W == 0.0) {
+    for (int c = 0; c < 4; c++) {
+      grad[c] = lin_grad[c];
+    }
+    return linear;
+  }
   double sigma_a[2], sigma_b[2];
   for (int c = 0; c < 2; c++) {
     sigma_a[c] = st->w * st->theta_a * st->u[c] + st->s * st->du_da[c];
     sigma_b[c] = st->w * st->theta_b * st->u[c] + st->s * st->du_db[c];
   }
-  grad[0] = st->phi;
-  grad[1] = e * st->v * st->theta_a + 0.5 * (y * sigma_a[0] - x * sigma_a[1]);
-  grad[2] = e * st->v * st->theta_b + 0.5 * (y * sigma_b[0] - x * sigma_b[1]);
-  grad[3] = -0.5 * (x * st->sigma[0] + y * st->sigma[1]);
-  return e * st->phi + 0.5 * (y * st->sigma[0] - x * st->sigma[1]);
+  double arc = e * st->phi + 0.5 * (y * st->sigma[0] - x * st->sigma[1]);
+  double arc_grad[4] = {
+      st->phi,
+      e * st->v * st->theta_a + 0.5 * (y * sigma_a[0] - x * sigma_a[1]),
+      e * st->v * st->theta_b + 0.5 * (y * sigma_b[0] - x * sigma_b[1]),
+      -0.5 * (x * st->sigma[0] + y * st->sigma[1]),
+  };
+  if (W == 1.0) {
+    for (int c = 0; c < 4; c++) {
+      grad[c] = arc_grad[c];
+    }
+    return arc;
+  }
+  for (int c = 0; c < 4; c++) {
+    grad[c] = W * arc_grad[c] + (1.0 - W) * lin_grad[c];
+  }
+  grad[1] += st->weight_a * (arc - linear);
+  grad[2] += st->weight_b * (arc - linear);
+  return W * arc + (1.0 - W) * linear;
 }
 
 // The segments' forces push(P, N l) along the gradients of their arc lengths, minus the whole
