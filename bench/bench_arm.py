@@ -2,7 +2,7 @@
 constrained arm), the random-pressure sweep, the D convergence table, the undamped energy run.
 
     python bench/bench_arm.py speed [--steps 3000] [--repeats 5]
-    python bench/bench_arm.py sweep [--sets 200]       # gravity off, 3/4/6 muscles x 1/2/3 sections
+    python bench/bench_arm.py sweep [--sets 200] [--disks D]  # gravity off, 3/4/6 muscles x 1/2/3 sections
     python bench/bench_arm.py convergence              # tip error vs the continuum reference, D = 4..32
     python bench/bench_arm.py energy                   # damping 0, D = 4, RK4 at 0.1 ms, 10 s
 
@@ -126,7 +126,7 @@ def sweep(args) -> dict:
         for sections in (1, 2, 3):
             rng = np.random.default_rng(100 * muscles + sections)
             spec = arm.ArmSpec(
-                sections=(arm.SectionSpec(muscles=(fam1,) * muscles),) * sections,
+                sections=(arm.SectionSpec(muscles=(fam1,) * muscles, disks=args.disks),) * sections,
                 gravity=False,
                 pressure_tau_s=0.0,
             )
@@ -148,12 +148,13 @@ def sweep(args) -> dict:
             key = f"{muscles}x{sections}"
             out[key] = {
                 "sets": args.sets,
+                "disks": args.disks,
                 "worst_tip_error_pct": 100 * max(errors),
                 "median_tip_error_pct": 100 * float(np.median(errors)),
                 "muscles_beyond_admissible": beyond,
                 "not_converged": failed,
             }
-            print(f"{muscles} muscles x {sections} sections: {args.sets} sets, worst tip error {100 * max(errors):.3f} % "
+            print(f"{muscles} muscles x {sections} sections, D = {args.disks}: {args.sets} sets, worst tip error {100 * max(errors):.3f} % "
                   f"of rest length (median {100 * np.median(errors):.3f} %), {beyond} muscles beyond admissible, "
                   f"{failed} not converged")  # fmt: skip
     return out
@@ -225,6 +226,7 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=5)
     p = sub.add_parser("sweep")
     p.add_argument("--sets", type=int, default=200)
+    p.add_argument("--disks", type=int, default=arm.DEFAULT_DISKS)
     p = sub.add_parser("convergence")
     p.add_argument("--disks", type=int, nargs="+", default=[4, 8, 16, 32])
     sub.add_parser("energy")

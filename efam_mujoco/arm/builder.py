@@ -636,17 +636,9 @@ def generalized_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     return data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
 
 
-def static_equilibrium(
-    model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, settle_s: float = 1.0, tol_N: float = 1e-9
-) -> bool:
-    """Put the arm at rest under constant pressures: a short quenched settle to reach the branch
-    the arm falls into (dynamics with every velocity zeroed whenever the kinetic energy falls:
-    a descent to the nearest minimum of the potential energy, whatever the model's damping),
-    then Newton on qpos (finite-difference stiffness) until the net generalized force is below
-    ``tol_N``. The pressure states are set to the pressures. Returns whether it converged (the
-    state is left at the best point found)."""
+def _quenched_settle(model, data, pressures_Pa, duration_s):
     data.ctrl[:] = np.ravel(pressures_Pa)
-    end, kinetic, momentum = data.time + settle_s, 0.0, np.zeros(model.nv)
+    end, kinetic, momentum = data.time + duration_s, 0.0, np.zeros(model.nv)
     while data.time < end - 1e-12:
         mujoco.mj_step(model, data)
         mujoco.mj_mulM(model, data, momentum, data.qvel)
@@ -657,9 +649,38 @@ def static_equilibrium(
         kinetic = now
     if not np.all(np.isfinite(data.qpos)):
         raise FloatingPointError(f"arm state not finite at t = {data.time:.3f} s")
-    data.ctrl[:] = np.ravel(pressures_Pa)
-    lagged = np.flatnonzero(model.actuator_actadr >= 0)
-    data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]
+
+
+def static_equilibrium(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    pressures_Pa,
+    settle_s: float = 1.0,
+    tol_N: float = 1e-9,
+    rounds: int = 4,
+) -> bool:
+    """Put the arm at rest under constant pressures: a short settle to reach the branch the arm
+    falls into (an undamped arm's settle is quenched: every velocity is zeroed whenever the
+    kinetic energy falls, a descent to the nearest minimum of the potential energy instead of
+    a swing through wild bends), then Newton on qpos (finite-difference stiffness) until the
+    net generalized force is below ``tol_N``; if Newton does not get there (an arm still far
+    from rest, e.g. rolling up into loops), another settle and Newton, up to ``rounds`` times.
+    The pressure states are set to the pressures. Returns whether it converged (the state is
+    left at the best point found)."""
+    for _ in range(rounds):
+        if model.dof_damping.any() or model.tendon_damping.any():
+            settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0)
+        else:
+            _quenched_settle(model, data, pressures_Pa, settle_s)
+        data.ctrl[:] = np.ravel(pressures_Pa)
+        lagged = np.flatnonzero(model.actuator_actadr >= 0)
+        data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]
+        if _newton(model, data, tol_N):
+            return True
+    return False
+
+
+def _newton(model, data, tol_N) -> bool:
     q = data.qpos.copy()
     r = generalized_force(model, data)
     h = 1e-7
