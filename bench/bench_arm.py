@@ -131,6 +131,8 @@ def sweep(args) -> dict:
                 pressure_tau_s=0.0,
             )
             model = arm.build_model(spec)
+            names = [n for s in arm.muscle_names(spec) for n in s]
+            geometry = arm.SegmentLengths(model, names)  # the segment lengths the plugin uses
             errors, beyond, failed = [], 0, 0
             for case in progress(range(args.sets), f"{muscles} muscles x {sections}"):
                 pressures = [random_pressures(rng, muscles, case % 2 == 1) for _ in range(sections)]
@@ -142,8 +144,7 @@ def sweep(args) -> dict:
                     / spec.rest_length_m
                 )
                 N = 2 * spec.sections[0].disks
-                for name in (n for s in arm.muscle_names(spec) for n in s):
-                    lengths = N * arm.muscle_segment_lengths(model, data, name)
+                for lengths in N * geometry(data).reshape(len(names), N):
                     beyond += int(np.any((lengths < fam1.min_length_m) | (lengths > fam1.max_length_m)))
             key = f"{muscles}x{sections}"
             out[key] = {

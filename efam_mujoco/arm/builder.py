@@ -499,23 +499,23 @@ _PHI_SERIES = (1.0, -1 / 12, -1 / 720, -1 / 30240, -1 / 1209600, -1 / 47900160, 
 _T_OVER_SIN_SERIES = (1.0, 1 / 6, 7 / 360, 31 / 15120, 127 / 604800, 73 / 3421440, 1414477 / 653837184000)
 
 
-def _rotates(model, joint) -> bool:
-    return model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_SLIDE
-
-
-def _link_hinges(model: mujoco.MjModel, body: int):
-    """(hinge about x, hinge about y) if ``body`` is a link's node (two such hinges, otherwise
-    only slides); None if it does not turn (slides or no joints); False for anything else."""
-    if body <= 0:
-        return False
-    joints = range(model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body])
-    turning = [j for j in joints if _rotates(model, j)]
-    if not turning:
-        return None
-    hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
-    x = [j for j in turning if model.jnt_type[j] == hinge and list(model.jnt_axis[j]) == [1, 0, 0]]
-    y = [j for j in turning if model.jnt_type[j] == hinge and list(model.jnt_axis[j]) == [0, 1, 0]]
-    return (x[0], y[0]) if len(turning) == 2 and len(x) == len(y) == 1 else False
+def _link_hinges(model: mujoco.MjModel) -> list:
+    """Per body: (hinge about x, hinge about y) if it is a link's node (two such hinges,
+    otherwise only slides); None if it does not turn (slides or no joints); False for anything
+    else (the world, other rotating joints: where the bundle's frame is rooted)."""
+    types, axes = np.asarray(model.jnt_type), np.asarray(model.jnt_axis)
+    first, count = np.asarray(model.body_jntadr), np.asarray(model.body_jntnum)
+    hinge, slide = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
+    out = [False]
+    for body in range(1, model.nbody):
+        turning = [j for j in range(first[body], first[body] + count[body]) if types[j] != slide]
+        x = [j for j in turning if types[j] == hinge and list(axes[j]) == [1, 0, 0]]
+        y = [j for j in turning if types[j] == hinge and list(axes[j]) == [0, 1, 0]]
+        if not turning:
+            out.append(None)
+        else:
+            out.append((x[0], y[0]) if len(turning) == 2 and len(x) == len(y) == 1 else False)
+    return out
 
 
 def _series(coefficients, t2):
@@ -540,9 +540,10 @@ class SegmentLengths:
             arc.append(np.full(t.size, config.get("arc_geometry") == "1"))
         self.tendons = np.concatenate(tendons).astype(int) if tendons else np.zeros(0, int)
         self.arc = np.concatenate(arc) if arc else np.zeros(0, bool)
-        links = [b for b in range(model.nbody) if _link_hinges(model, b)]
+        kinds = _link_hinges(model)
+        links = [b for b in range(model.nbody) if kinds[b]]
         index = {b: k for k, b in enumerate(links)}
-        hinges = [_link_hinges(model, b) for b in links]
+        hinges = [kinds[b] for b in links]
         self.qpos_a = np.array([model.jnt_qposadr[hx] for hx, _ in hinges], dtype=int)
         self.qpos_b = np.array([model.jnt_qposadr[hy] for _, hy in hinges], dtype=int)
         self.x_first = np.array([hx < hy for hx, hy in hinges], dtype=bool)
@@ -550,7 +551,7 @@ class SegmentLengths:
         self.proximal = np.zeros((len(links), len(links)))
         for k, b in enumerate(links):
             p = model.body_parentid[b]
-            while _link_hinges(model, p) is not False:
+            while kinds[p] is not False:
                 if p in index:
                     self.proximal[k, index[p]] = 1.0
                 p = model.body_parentid[p]
@@ -564,7 +565,7 @@ class SegmentLengths:
         slide = coef_x = coef_y = node = None
         for w in range(model.tendon_adr[tendon], model.tendon_adr[tendon] + model.tendon_num[tendon]):
             j, c = model.wrap_objid[w], model.wrap_prm[w]
-            if not _rotates(model, j):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
                 slide = model.jnt_qposadr[j]
             elif list(model.jnt_axis[j]) == [1, 0, 0]:
                 coef_x, node = c, model.jnt_bodyid[j]
