@@ -232,7 +232,7 @@ def plugin_config(
     ``arc_geometry`` (segmented muscles of the arm builder's links, see
     :mod:`efam_mujoco.arm.builder`): each segment's length is its muscle's arc length in its
     half-link, computed from the link's joints (exact at constant curvature, any bend plane), not
-    the segment tendon's linear approximation; :func:`efam_mujoco.arm.segment_arc_lengths` is the
+    the segment tendon's linear approximation; :class:`efam_mujoco.arm.SegmentLengths` is the
     same geometry in Python."""
     if int(segments) != segments or segments < 1:
         raise ValueError(f"segments must be a whole number >= 1, got {segments!r}")
