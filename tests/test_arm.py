@@ -210,6 +210,27 @@ def test_arc_geometry_config_is_validated_with_the_key_named():
         plugin.plugin_config(FAM1, arc_geometry=True)
 
 
+def test_copied_data_has_its_own_arc_geometry():
+    """mj_copyData (copy.copy) gives the copy the plugin's arc geometry of its own: both step to
+    the same forces, and the copy outlives the original."""
+    import copy
+    import gc
+
+    model = arm.build_model(arm.arm_1x3(disks=3, pressure_tau_s=0.0))
+    data = mujoco.MjData(model)
+    data.ctrl[:] = [400e3, 100e3, 250e3]
+    for _ in range(50):
+        mujoco.mj_step(model, data)
+    twin = copy.copy(data)
+    mujoco.mj_step(model, data)
+    mujoco.mj_step(model, twin)
+    np.testing.assert_array_equal(twin.qfrc_passive, data.qfrc_passive)
+    del data
+    gc.collect()
+    mujoco.mj_step(model, twin)
+    assert np.all(np.isfinite(twin.qfrc_passive)) and np.abs(twin.qfrc_passive).max() > 0
+
+
 def test_instance_config_reads_back_the_builders_keys():
     """plugin.instance_config parses a compiled model's keys in the plugin's attribute order:
     every muscle key of every instance reads back as the builder wrote it."""
