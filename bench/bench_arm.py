@@ -155,8 +155,8 @@ def sweep(args) -> dict:
                 "muscles_beyond_admissible": beyond,
                 "not_converged": failed,
             }
-            print(f"{muscles} muscles x {sections} sections, D = {args.disks}: {args.sets} sets, worst tip error {100 * max(errors):.3f} % "
-                  f"of rest length (median {100 * np.median(errors):.3f} %), {beyond} muscles beyond admissible, "
+            print(f"{muscles} muscles x {sections} sections, D = {args.disks}: {args.sets} sets, worst tip error {100 * max(errors):.3g} % "
+                  f"of rest length (median {100 * np.median(errors):.3g} %), {beyond} muscles beyond admissible, "
                   f"{failed} not converged")  # fmt: skip
     return out
 
