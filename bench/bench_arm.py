@@ -2,7 +2,7 @@
 constrained arm), the random-pressure sweep, the D convergence table, the undamped energy run.
 
     python bench/bench_arm.py speed [--steps 3000] [--repeats 5]
-    python bench/bench_arm.py sweep [--sets 200]       # gravity off, 3/4/6 muscles x 1/2/3 sections
+    python bench/bench_arm.py sweep [--sets 200] [--disks D]  # gravity off, 3/4/6 muscles x 1/2/3 sections
     python bench/bench_arm.py convergence              # tip error vs the continuum reference, D = 4..32
     python bench/bench_arm.py energy [--arms 1x3 3x3] [--disks D] [--modes ...] [--duration 10]
 
@@ -153,11 +153,13 @@ def sweep(args) -> dict:
         for sections in (1, 2, 3):
             rng = np.random.default_rng(100 * muscles + sections)
             spec = arm.ArmSpec(
-                sections=(arm.SectionSpec(muscles=(fam1,) * muscles),) * sections,
+                sections=(arm.SectionSpec(muscles=(fam1,) * muscles, disks=args.disks),) * sections,
                 gravity=False,
                 pressure_tau_s=0.0,
             )
             model = arm.build_model(spec)
+            names = [n for s in arm.muscle_names(spec) for n in s]
+            geometry = arm.SegmentLengths(model, names)  # the segment lengths the plugin uses
             errors, beyond, failed = [], 0, 0
             for case in progress(range(args.sets), f"{muscles} muscles x {sections}"):
                 pressures = [random_pressures(rng, muscles, case % 2 == 1) for _ in range(sections)]
@@ -169,19 +171,19 @@ def sweep(args) -> dict:
                     / spec.rest_length_m
                 )
                 N = 2 * spec.sections[0].disks
-                for name in (n for s in arm.muscle_names(spec) for n in s):
-                    lengths = N * arm.muscle_segment_lengths(model, data, name)
+                for lengths in N * geometry(data).reshape(len(names), N):
                     beyond += int(np.any((lengths < fam1.min_length_m) | (lengths > fam1.max_length_m)))
             key = f"{muscles}x{sections}"
             out[key] = {
                 "sets": args.sets,
+                "disks": args.disks,
                 "worst_tip_error_pct": 100 * max(errors),
                 "median_tip_error_pct": 100 * float(np.median(errors)),
                 "muscles_beyond_admissible": beyond,
                 "not_converged": failed,
             }
-            print(f"{muscles} muscles x {sections} sections: {args.sets} sets, worst tip error {100 * max(errors):.3f} % "
-                  f"of rest length (median {100 * np.median(errors):.3f} %), {beyond} muscles beyond admissible, "
+            print(f"{muscles} muscles x {sections} sections, D = {args.disks}: {args.sets} sets, worst tip error {100 * max(errors):.3g} % "
+                  f"of rest length (median {100 * np.median(errors):.3g} %), {beyond} muscles beyond admissible, "
                   f"{failed} not converged")  # fmt: skip
     return out
 
@@ -334,6 +336,7 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=5)
     p = sub.add_parser("sweep")
     p.add_argument("--sets", type=int, default=200)
+    p.add_argument("--disks", type=int, default=arm.DEFAULT_DISKS)
     p = sub.add_parser("convergence")
     p.add_argument("--disks", type=int, nargs="+", default=[4, 8, 16, 32])
     p = sub.add_parser("energy")

@@ -19,6 +19,7 @@ pressure; the joints between disks allow extension and bending and nothing else.
 from .builder import (
     MODELS,
     MODELS_DIR,
+    SegmentLengths,
     arm_xml,
     base_frame_position,
     build_model,
@@ -61,6 +62,7 @@ __all__ = [
     "ArmSpec",
     "MuscleParts",
     "SectionSpec",
+    "SegmentLengths",
     "arm_1x3",
     "arm_3x3",
     "arm_xml",

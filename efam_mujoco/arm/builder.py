@@ -319,7 +319,7 @@ def _shared_instance(spec: mujoco.MjSpec, muscle: Muscle, segments: int):
     """The plugin instance for ``muscle``'s constants, made once per distinct muscle: an instance
     evaluates all its actuators (and their segments) as one vectorised batch, and MuJoCo visits
     every instance each step whatever it computes."""
-    config = plugin.plugin_config(muscle, segments=segments)
+    config = plugin.plugin_config(muscle, segments=segments, arc_geometry=segments > 1)
     for existing in spec.plugins:
         if existing.plugin_name == plugin.PLUGIN_NAME and dict(existing.config) == config:
             return existing
@@ -488,8 +488,138 @@ def segment_tendons(model: mujoco.MjModel, name: str) -> np.ndarray:
 
 
 def muscle_segment_lengths(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
-    """Current length of each segment of muscle ``name``, m."""
-    return data.ten_length[segment_tendons(model, name)].copy()
+    """Current length of each segment of muscle ``name``, m: the length the plugin gives the
+    segment (its arc length, see :class:`SegmentLengths`)."""
+    return SegmentLengths(model, [name])(data)
+
+
+# ---------------------------------------------------------------- the segments' arc geometry
+#
+# The same geometry as the plugin's (efam_muscle.c, "arc geometry"), written from the same
+# derivation: a link bends by the universal joint's swing (angle theta about the axis along
+# sigma) and twists by tau; the bundle's disks are the swing-transported frames, so a muscle at
+# offset (x, y) sits at Rz(-T) (x, y) in the MuJoCo frame of its link's proximal disk (T: the
+# twists of all proximal links), and each half-link's arc at the muscle has length
+# e phi(theta) + (y' sigma_x - x' sigma_y) / 2, phi(t) = (t / 2) / tan(t / 2) (blended into
+# the linear e + (y' a - x' b) / 2 for bends beyond ARC_EXACT_UP_TO_RAD).
+
+#: up to this bend of one link (rad) a segment's length is its arc's; beyond, it blends (C2 in
+#: the bend) into the linear tendon geometry, fully at ARC_LINEAR_FROM_RAD (the swing is singular
+#: at pi; a link bent that far is far outside the muscles' admissible lengths)
+ARC_EXACT_UP_TO_RAD = 2.0
+ARC_LINEAR_FROM_RAD = 2.5
+_SERIES_BELOW = 0.25  # phi and t / sin t by their series in t^2 (to t^12) below this angle
+_PHI_SERIES = (1.0, -1 / 12, -1 / 720, -1 / 30240, -1 / 1209600, -1 / 47900160, -691 / 1307674368000)
+_T_OVER_SIN_SERIES = (1.0, 1 / 6, 7 / 360, 31 / 15120, 127 / 604800, 73 / 3421440, 1414477 / 653837184000)
+
+
+def _link_hinges(model: mujoco.MjModel) -> list:
+    """Per body: (hinge about x, hinge about y) if it is a link's node (two such hinges,
+    otherwise only slides); None if it does not turn (slides or no joints); False for anything
+    else (the world, other rotating joints: where the bundle's frame is rooted)."""
+    types, axes = np.asarray(model.jnt_type), np.asarray(model.jnt_axis)
+    first, count = np.asarray(model.body_jntadr), np.asarray(model.body_jntnum)
+    hinge, slide = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
+    out = [False]
+    for body in range(1, model.nbody):
+        turning = [j for j in range(first[body], first[body] + count[body]) if types[j] != slide]
+        x = [j for j in turning if types[j] == hinge and list(axes[j]) == [1, 0, 0]]
+        y = [j for j in turning if types[j] == hinge and list(axes[j]) == [0, 1, 0]]
+        if not turning:
+            out.append(None)
+        else:
+            out.append((x[0], y[0]) if len(turning) == 2 and len(x) == len(y) == 1 else False)
+    return out
+
+
+def _series(coefficients, t2):
+    out = np.zeros_like(t2)
+    for c in coefficients[::-1]:
+        out = out * t2 + c
+    return out
+
+
+class SegmentLengths:
+    """The lengths the plugin gives the segments of muscles ``names`` (m, concatenated in that
+    order): each segment's arc length in its half-link when the muscle's plugin instance has
+    ``arc_geometry`` on (the arms :func:`build_spec` makes: from ``data.qpos``), else its
+    tendon's length (``data.ten_length``: after mj_forward). Parses the model once."""
+
+    def __init__(self, model: mujoco.MjModel, names):
+        tendons = [segment_tendons(model, n) for n in names]
+        arc = []
+        for name, t in zip(names, tendons):
+            instance = model.actuator_plugin[model.actuator(name).id]
+            config = plugin.instance_config(model, instance) if instance >= 0 and t.size else {}
+            arc.append(np.full(t.size, config.get("arc_geometry") == "1"))
+        self.tendons = np.concatenate(tendons).astype(int) if tendons else np.zeros(0, int)
+        self.arc = np.concatenate(arc) if arc else np.zeros(0, bool)
+        kinds = _link_hinges(model)
+        links = [b for b in range(model.nbody) if kinds[b]]
+        index = {b: k for k, b in enumerate(links)}
+        hinges = [kinds[b] for b in links]
+        self.qpos_a = np.array([model.jnt_qposadr[hx] for hx, _ in hinges], dtype=int)
+        self.qpos_b = np.array([model.jnt_qposadr[hy] for _, hy in hinges], dtype=int)
+        self.x_first = np.array([hx < hy for hx, hy in hinges], dtype=bool)
+        # proximal[k, j]: link j is proximal to link k (its twist turns link k's muscles)
+        self.proximal = np.zeros((len(links), len(links)))
+        for k, b in enumerate(links):
+            p = model.body_parentid[b]
+            while kinds[p] is not False:
+                if p in index:
+                    self.proximal[k, index[p]] = 1.0
+                p = model.body_parentid[p]
+        rows = np.array([self._segment(model, t, index) for t in self.tendons[self.arc]]).reshape(-1, 4)
+        self.link, self.slide = rows[:, 0].astype(int), rows[:, 1].astype(int)
+        self.x, self.y = rows[:, 2], rows[:, 3]
+
+    @staticmethod
+    def _segment(model, tendon, index):
+        """(link index, slide qpos address, x, y) of a segment tendon e + (y a - x b) / 2."""
+        slide = coef_x = coef_y = node = None
+        for w in range(model.tendon_adr[tendon], model.tendon_adr[tendon] + model.tendon_num[tendon]):
+            j, c = model.wrap_objid[w], model.wrap_prm[w]
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+                slide = model.jnt_qposadr[j]
+            elif list(model.jnt_axis[j]) == [1, 0, 0]:
+                coef_x, node = c, model.jnt_bodyid[j]
+            else:
+                coef_y = c
+        return index[node], slide, -2.0 * coef_y, 2.0 * coef_x
+
+    def __call__(self, data: mujoco.MjData) -> np.ndarray:
+        """The segment lengths in state ``data``."""
+        out = data.ten_length[self.tendons]
+        if self.arc.any():
+            out[self.arc] = self.arc_lengths(data.qpos)
+        return out
+
+    def arc_lengths(self, qpos) -> np.ndarray:
+        """The arc-geometry segments' lengths at joint positions ``qpos``."""
+        qpos = np.asarray(qpos)
+        a, b = qpos[self.qpos_a], qpos[self.qpos_b]
+        sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
+        u = np.where(self.x_first, [sa * cb, sb], [sa, ca * sb])  # (2, links)
+        sin_theta = np.hypot(u[0], u[1])
+        theta = np.arctan2(sin_theta, ca * cb)
+        blend = np.clip((theta - ARC_EXACT_UP_TO_RAD) / (ARC_LINEAR_FROM_RAD - ARC_EXACT_UP_TO_RAD), 0.0, 1.0)
+        weight = 1.0 - blend**3 * (10.0 - 15.0 * blend + 6.0 * blend**2)  # 1: the arc, 0: linear
+        small = theta < _SERIES_BELOW
+        safe = np.where(small | (weight == 0), 1.0, theta)
+        safe_sin = np.where(small | (weight == 0), 1.0, sin_theta)
+        t2 = theta**2
+        phi = np.where(small, _series(_PHI_SERIES, t2), 0.5 * safe / np.tan(0.5 * safe))
+        ratio = np.where(small, _series(_T_OVER_SIN_SERIES, t2), safe / safe_sin)
+        sigma = ratio * u
+        twist = np.where(self.x_first, 1.0, -1.0) * 2.0 * np.arctan2(np.sin(a / 2) * np.sin(b / 2),
+                                                                    np.cos(a / 2) * np.cos(b / 2))  # fmt: skip
+        T = (self.proximal @ (weight * twist))[self.link]
+        x = np.cos(T) * self.x + np.sin(T) * self.y
+        y = -np.sin(T) * self.x + np.cos(T) * self.y
+        k, e = self.link, qpos[self.slide]
+        arc = e * phi[k] + 0.5 * (y * sigma[0, k] - x * sigma[1, k])
+        linear = e + 0.5 * (y * a[k] - x * b[k])
+        return weight[k] * arc + (1.0 - weight[k]) * linear
 
 
 __all__ = [
@@ -504,6 +634,7 @@ __all__ = [
     "muscle_pressures",
     "muscle_segment_lengths",
     "node_inertias",
+    "SegmentLengths",
     "segment_coefficients",
     "segment_tendons",
     "settle",
@@ -520,17 +651,51 @@ def generalized_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     return data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
 
 
-def static_equilibrium(
-    model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, settle_s: float = 1.0, tol_N: float = 1e-9
-) -> bool:
-    """Put the arm at rest under constant pressures: a short settle to reach the branch the
-    arm falls into, then Newton on qpos (finite-difference stiffness) until the net generalized
-    force is below ``tol_N``. The pressure states are set to the pressures. Returns whether it
-    converged (the state is left at the best point found)."""
-    settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0)
+def _quenched_settle(model, data, pressures_Pa, duration_s):
     data.ctrl[:] = np.ravel(pressures_Pa)
-    lagged = np.flatnonzero(model.actuator_actadr >= 0)
-    data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]
+    end, kinetic, momentum = data.time + duration_s, 0.0, np.zeros(model.nv)
+    while data.time < end - 1e-12:
+        mujoco.mj_step(model, data)
+        mujoco.mj_mulM(model, data, momentum, data.qvel)
+        now = 0.5 * float(data.qvel @ momentum)
+        if now < kinetic:
+            data.qvel[:] = 0.0
+            now = 0.0
+        kinetic = now
+    if not np.all(np.isfinite(data.qpos)):
+        raise FloatingPointError(f"arm state not finite at t = {data.time:.3f} s")
+
+
+def static_equilibrium(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    pressures_Pa,
+    settle_s: float = 1.0,
+    tol_N: float = 1e-9,
+    rounds: int = 4,
+) -> bool:
+    """Put the arm at rest under constant pressures: a short settle to reach the branch the arm
+    falls into (an undamped arm's settle is quenched: every velocity is zeroed whenever the
+    kinetic energy falls, a descent to the nearest minimum of the potential energy instead of
+    a swing through wild bends), then Newton on qpos (finite-difference stiffness) until the
+    net generalized force is below ``tol_N``; if Newton does not get there (an arm still far
+    from rest, e.g. rolling up into loops), another settle and Newton, up to ``rounds`` times.
+    The pressure states are set to the pressures. Returns whether it converged (the state is
+    left at the best point found)."""
+    for _ in range(rounds):
+        if model.dof_damping.any() or model.tendon_damping.any():
+            settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0)
+        else:
+            _quenched_settle(model, data, pressures_Pa, settle_s)
+        data.ctrl[:] = np.ravel(pressures_Pa)
+        lagged = np.flatnonzero(model.actuator_actadr >= 0)
+        data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]
+        if _newton(model, data, tol_N):
+            return True
+    return False
+
+
+def _newton(model, data, tol_N) -> bool:
     q = data.qpos.copy()
     r = generalized_force(model, data)
     h = 1e-7

@@ -12,31 +12,46 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .builder import segment_tendons
+from .builder import SegmentLengths, segment_tendons
 
 _GRID = 200_001  # samples of the force-length table per (muscle, pressure)
 
 
 class MusclePotential:
     """V(l) = -int_{l0}^{l} push(P, N x) dx for every segment of every muscle of an arm model at
-    fixed pressures (tabulated once; l0 = the segment's resting length, V = 0 there)."""
+    fixed pressures (tabulated once; l0 = the segment's resting length, V = 0 there), at the
+    segment lengths the plugin uses (:class:`.builder.SegmentLengths`: the arc lengths)."""
 
     def __init__(self, model: mujoco.MjModel, names: list[str], muscles: list, pressures_Pa):
+        segmented = [n for n in names if segment_tendons(model, n).size]
+        self.lengths = SegmentLengths(model, segmented)
         self.entries = []
+        start = 0
         for name, muscle, p in zip(names, muscles, np.ravel(pressures_Pa)):
-            tendons = segment_tendons(model, name)
-            if tendons.size == 0:  # PCC: the whole muscle is one segment
-                tendons = np.array([model.tendon(name).id])
-            N = len(tendons)
+            N = segment_tendons(model, name).size
+            segmented_muscle = N > 0
+            if segmented_muscle:  # the muscle's segments, in the order SegmentLengths gives them
+                where = slice(start, start + N)
+                start += N
+            else:  # PCC: the whole muscle is one segment (its tendon)
+                where = int(model.tendon(name).id)
+                N = 1
             lengths = np.linspace(0.5 * muscle.min_length_m, 1.5 * muscle.max_length_m, _GRID) / N
             force = muscle.push(float(p), N * lengths)
             work = np.concatenate([[0.0], np.cumsum((force[1:] + force[:-1]) / 2 * np.diff(lengths))])
             rest = muscle.rest_length_m / N
             work -= np.interp(rest, lengths, work)
-            self.entries.append((tendons, lengths, -work))
+            self.entries.append((segmented_muscle, where, lengths, -work))
 
     def __call__(self, data: mujoco.MjData) -> float:
-        return float(sum(np.interp(data.ten_length[t], grid, V).sum() for t, grid, V in self.entries))
+        """The muscles' potential in state ``data`` (J; tendon lengths from its last mj_forward)."""
+        segments = self.lengths(data)
+        return float(
+            sum(
+                np.interp(segments[where] if segmented else data.ten_length[where], grid, V).sum()
+                for segmented, where, grid, V in self.entries
+            )
+        )
 
 
 def kinetic_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:

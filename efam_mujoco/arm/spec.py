@@ -21,7 +21,7 @@ MAX_TESTED_PRESSURE_PA = 75 * PSI
 #: resting diameter (room for the sleeves' braid and for assembly)
 DEFAULT_CLEARANCE = 0.1
 #: spacer disks per section when none is given: from the convergence table in docs/arms.md
-DEFAULT_DISKS = 16
+DEFAULT_DISKS = 8
 
 ORIENTATIONS = {
     # quaternion (w, x, y, z) turning the base frame's z (the arm axis) to the named direction

@@ -193,11 +193,32 @@ def _number(value: float) -> str:
     return repr(float(value))
 
 
+#: The muscle's config keys in the plugin's attribute order (``kAttributes`` in efam_muscle.c; the
+#: effect keys follow them): a compiled model stores each instance's values in this order.
+MUSCLE_CONFIG_KEYS = (
+    "rest_length_m", "rest_diameter_m", "theta_rest_deg", "bladder_volume_m3", "deadband_Pa",
+    "law", "tension_only", "lock_stiffness_N_per_m", "E1_Pa", "E2", "E3_Pa", "E3", "E4_Pa", "E4",
+    "segments", "arc_geometry",
+)  # fmt: skip
+
+
+def instance_config(model, instance: int) -> dict[str, str]:
+    """The muscle config keys (:data:`MUSCLE_CONFIG_KEYS`) that plugin instance ``instance`` of a
+    compiled ``model`` was given (keys left unset are absent)."""
+    if not 0 <= instance < model.nplugin:
+        raise ValueError(f"plugin instance {instance} does not exist (the model has {model.nplugin})")
+    raw = bytes(model.plugin_attr[model.plugin_attradr[instance] :])
+    values = raw.split(b"\0")[: len(MUSCLE_CONFIG_KEYS)]
+    return {key: v.decode() for key, v in zip(MUSCLE_CONFIG_KEYS, values) if v}
+
+
 #: Effects that are not actuator forces: the rig adds them to its sensors, not the plugin.
 SENSOR_EFFECTS = ("force_offset",)
 
 
-def plugin_config(muscle: Muscle, effects=None, segments: int = 1) -> dict[str, str]:
+def plugin_config(
+    muscle: Muscle, effects=None, segments: int = 1, arc_geometry: bool = False
+) -> dict[str, str]:
     """The ``<config key=... value=...>`` pairs of the efam.muscle plugin for ``muscle``, with
     the ``effects`` (``[(name, parameters), ...]``, as ``EffectModel`` and ``Diagnosis.effects``
     hold them) switched on; see :func:`effects_config`.
@@ -206,9 +227,17 @@ def plugin_config(muscle: Muscle, effects=None, segments: int = 1) -> dict[str, 
     the N tendons that follow that tendon (in tendon order) are the muscle's segments between
     consecutive spacer disks, of equal resting length; every segment pushes with
     ``muscle.push(P, N * segment_length)`` at the actuator's one pressure state (the actuator
-    applies the whole muscle's push, the plugin's passive stage the difference per segment)."""
+    applies the whole muscle's push, the plugin's passive stage the difference per segment).
+
+    ``arc_geometry`` (segmented muscles of the arm builder's links, see
+    :mod:`efam_mujoco.arm.builder`): each segment's length is its muscle's arc length in its
+    half-link, computed from the link's joints (exact at constant curvature, any bend plane), not
+    the segment tendon's linear approximation; :class:`efam_mujoco.arm.SegmentLengths` is the
+    same geometry in Python."""
     if int(segments) != segments or segments < 1:
         raise ValueError(f"segments must be a whole number >= 1, got {segments!r}")
+    if arc_geometry and segments < 2:
+        raise ValueError("arc_geometry needs segmented muscles (segments > 1)")
     config = {
         "rest_length_m": _number(muscle.rest_length_m),
         "rest_diameter_m": _number(muscle.rest_diameter_m),
@@ -224,6 +253,8 @@ def plugin_config(muscle: Muscle, effects=None, segments: int = 1) -> dict[str, 
     config.update(effects_config(effects))
     if segments > 1:
         config["segments"] = str(int(segments))
+    if arc_geometry:
+        config["arc_geometry"] = "1"
     return config
 
 
@@ -302,6 +333,7 @@ def instance_xml(name: str, muscle: Muscle, indent: str = "", effects=None) -> s
 __all__ = [
     "LIBRARY_FILE",
     "MISSING_PLUGIN_HINT",
+    "MUSCLE_CONFIG_KEYS",
     "PLUGIN_NAME",
     "PluginLoadError",
     "SENSOR_EFFECTS",
@@ -310,6 +342,7 @@ __all__ = [
     "effects_config",
     "instance_xml",
     "installed_copies",
+    "instance_config",
     "is_loaded",
     "is_missing_plugin_error",
     "library_path",

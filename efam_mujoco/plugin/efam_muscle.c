@@ -131,7 +131,7 @@ static const char* const kAttributes[] = {
     "rest_length_m", "rest_diameter_m", "theta_rest_deg", "bladder_volume_m3", "deadband_Pa",
     "law",           "tension_only",    "lock_stiffness_N_per_m",
     "E1_Pa",         "E2",              "E3_Pa",          "E3",          "E4_Pa", "E4",
-    "segments",
+    "segments",      "arc_geometry",
 };
 #define NATTRIBUTE ((int)(sizeof(kAttributes) / sizeof(kAttributes[0])))
 #define FIRST_COEF_ATTRIBUTE 8
@@ -228,6 +228,12 @@ typedef struct {
   // consecutive spacer disks, all of equal resting length. Segment k pushes like the whole
   // muscle at N times its length (uniform deformation), at the muscle's one pressure state.
   int segments;
+
+  // arc geometry (config key `arc_geometry` = 1, segmented arms): each segment's length is the
+  // length of the muscle's arc in its half-link, computed from the link's joints (see
+  // "arc geometry" below), not the fixed tendon's linear approximation. Model constants.
+  int arc_geometry;
+  struct ArcGeometry* arc;
 
   // the actuators this instance drives
   // pressure sensors (<sensor><plugin instance=.../>): where each writes its nactuator values
@@ -744,9 +750,12 @@ static void check_actuators(const mjModel* m, int instance) {
   }
 }
 
-// segmented muscles (below the callbacks)
+// segmented muscles and their arc geometry (below the callbacks)
 static void check_segments(const mjModel* m, int instance, const Muscle* mu);
 static void add_segment_forces(const mjModel* m, mjData* d, const Muscle* mu);
+static void check_arc_geometry(const mjModel* m, int instance, const Muscle* mu);
+static struct ArcGeometry* arc_build(const mjModel* m, const Muscle* mu);
+static struct ArcGeometry* arc_clone(const struct ArcGeometry* from);
 
 // Read, validate and derive everything before allocating, so that an error (which does not
 // return) leaks nothing.
@@ -781,6 +790,8 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
           segments, "must be a whole number from 1 to 1024");
   mu.segments = (int)segments;
   check_segments(m, instance, &mu);
+  mu.arc_geometry = read_flag(m, instance, "arc_geometry");
+  check_arc_geometry(m, instance, &mu);
 
   int nsensor = 0;
   for (int j = 0; j < m->nsensor; j++) {
@@ -799,6 +810,14 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
   for (int i = 0; i < m->nactuator; i++) {
     if (m->actuator_plugin[i] == instance) {
       out->actuator[out->nactuator++] = i;
+    }
+  }
+  out->arc = NULL;
+  if (out->arc_geometry) {  // checked above: building it cannot fail but for memory
+    out->arc = arc_build(m, out);
+    if (!out->arc) {
+      free(out);
+      return NULL;
     }
   }
   out->nsensor = 0;
@@ -914,7 +933,13 @@ static void muscle_compute(const mjModel* m, mjData* d, int instance, int capabi
 // push(P, N l_k) along its own Jacobian J_k. The pressure is the actuator's state (ctrl, or the
 // activation of its filter), so one pressure lag serves all segments of a muscle.
 
+static void add_arc_segment_forces(const mjModel* m, mjData* d, const Muscle* mu);
+
 static void add_segment_forces(const mjModel* m, mjData* d, const Muscle* mu) {
+  if (mu->arc) {
+    add_arc_segment_forces(m, d, mu);
+    return;
+  }
   const int N = mu->segments;
   double pressure[BATCH], length[BATCH], tension[BATCH];
   int tendon[BATCH];
@@ -980,6 +1005,483 @@ static void check_segments(const mjModel* m, int instance, const Muscle* mu) {
   }
 }
 
+// ------------------------------------------------------------------------- arc geometry
+//
+// Config key `arc_geometry` = 1 (segmented muscles of the arm builder's links). A link is a slide
+// ext_a along the previous disk's axis z, a universal joint at its node (hinges a about x and b
+// about y, in the body's joint order), and a slide ext_b along the node's new axis. Its segment
+// tendons are fixed tendons e + (y a - x b) / 2 (e the half-link's slide, (x, y) the muscle's
+// offset): linear in the joints, which is right to first order in the bend. Exactly:
+//
+// * the tangents of an arc of bend theta have length e = R tan(theta / 2), its half-arcs R theta / 2:
+//   the muscle's half-arc at the axis is e phi(theta), phi(t) = (t / 2) / tan(t / 2);
+// * a universal joint turns the disk by Q = Rx(a) Ry(b) (or Ry(b) Rx(a)): a swing, the shortest
+//   rotation taking z to Q z, by the angle theta (cos theta = cos a cos b) about the axis along
+//   sigma = theta u / |u|, u = (sin a cos b, sin b) (x first; (sin a, cos a sin b) y first),
+//   followed by a twist about the new axis, tau = +-2 atan2(sin(a/2) sin(b/2), cos(a/2) cos(b/2)).
+//   The bundle does not twist (its spacer disks and clamped muscles keep it from it; the
+//   continuum reference has no twist either): its disks are the swing-transported frames, and
+//   a MuJoCo disk is the bundle's disk turned by the twist T its links have accumulated since
+//   the last body that is not a link (the arm's base); swings commute with twists about z, so T
+//   is the sum of the links' tau, and a link's swing in the bundle's frame is its own sigma
+//   turned by T.
+//
+// So a muscle at offset (x, y) in the bundle's disk, at (x', y') = Rz(-T) (x, y) in the MuJoCo
+// frame of the link's proximal disk, has in each half-link the arc length
+//
+//     l = e phi(theta) + (y' sigma_x - x' sigma_y) / 2,
+//
+// exact for a link bent at constant curvature in any plane (the arc's length at the muscle's
+// offset). l is a smooth function of the joints (e, a, b) of its link and of every proximal
+// link's (a, b) through T; the segment's force push(P, N l) acts along its gradient, so the
+// forces derive from the muscles' energy at the segment lengths (conservative). Unloaded, every
+// segment's force balance is the continuum's, so the arm is the continuum's constant-curvature
+// arc at its disks, for any number of disks. The fixed tendons stay as they are (the actuator's
+// whole-muscle length and the segments' Jacobians that the passive stage subtracts).
+
+typedef struct {
+  int qpos_a, qpos_b, dof_a, dof_b;  // hinges about x (a) and y (b)
+  int x_first;                       // Q = Rx(a) Ry(b) (1) or Ry(b) Rx(a) (0)
+  int parent;                        // nearest proximal link (index), -1 at the root
+} ArcLink;
+
+typedef struct {
+  int link, slide_qpos, slide_dof;
+  double x, y;  // the muscle's offset in the bundle's disk (from the tendon's coefficients)
+} ArcSegment;
+
+typedef struct ArcGeometry {
+  int nlink, nseg;  // segments in actuator order, N per actuator
+  ArcLink* link;    // both arrays live in this allocation, right after the struct
+  ArcSegment* seg;
+} ArcGeometry;
+
+static ArcGeometry* arc_alloc(int nlink, int nseg) {
+  ArcGeometry* g = (ArcGeometry*)malloc(sizeof(ArcGeometry) + sizeof(ArcLink) * (size_t)nlink +
+                                        sizeof(ArcSegment) * (size_t)nseg);
+  if (g) {
+    g->nlink = nlink;
+    g->nseg = nseg;
+    g->link = (ArcLink*)(g + 1);
+    g->seg = (ArcSegment*)(g->link + nlink);
+  }
+  return g;
+}
+
+static ArcGeometry* arc_clone(const ArcGeometry* from) {
+  ArcGeometry* g = arc_alloc(from->nlink, from->nseg);
+  if (g) {
+    memcpy(g->link, from->link, sizeof(ArcLink) * (size_t)from->nlink);
+    memcpy(g->seg, from->seg, sizeof(ArcSegment) * (size_t)from->nseg);
+  }
+  return g;
+}
+
+static int axis_is(const mjModel* m, int joint, double x, double y, double z) {
+  const mjtNum* a = m->jnt_axis + 3 * joint;
+  return a[0] == x && a[1] == y && a[2] == z;
+}
+
+// What body b is to the arc geometry: 1 a link (exactly two hinges, about its x and y axes, and
+// otherwise only slides; *hx, *hy their joint ids), 0 a body that does not turn (slides only, or
+// no joints), -1 anything else (the world, a ball, free or other hinge joint: the root).
+static int link_kind(const mjModel* m, int b, int* hx, int* hy) {
+  if (b <= 0) {
+    return -1;
+  }
+  int nx = 0, ny = 0, other = 0;
+  for (int j = m->body_jntadr[b]; j < m->body_jntadr[b] + m->body_jntnum[b]; j++) {
+    if (m->jnt_type[j] == mjJNT_SLIDE) {
+      continue;
+    }
+    if (m->jnt_type[j] == mjJNT_HINGE && axis_is(m, j, 1, 0, 0)) {
+      nx++;
+      *hx = j;
+    } else if (m->jnt_type[j] == mjJNT_HINGE && axis_is(m, j, 0, 1, 0)) {
+      ny++;
+      *hy = j;
+    } else {
+      other++;
+    }
+  }
+  if (other || nx > 1 || ny > 1 || nx != ny) {
+    return -1;
+  }
+  return nx == 1 ? 1 : 0;
+}
+
+// The link body of segment tendon t, its slide and its muscle offset; an error message (in
+// `why`) when the tendon is not a half-link's segment. Returns the node body or -1.
+static int arc_segment_of(const mjModel* m, int t, ArcSegment* out, char* why, size_t size) {
+  int slide = -1, hx = -1, hy = -1;
+  double cx = 0, cy = 0, cslide = 0;
+  if (m->tendon_num[t] != 3) {
+    snprintf(why, size, "has %d wraps, a half-link's segment has 3 (its slide and two hinges)", m->tendon_num[t]);
+    return -1;
+  }
+  for (int w = m->tendon_adr[t]; w < m->tendon_adr[t] + m->tendon_num[t]; w++) {
+    int j = m->wrap_objid[w];
+    if (m->wrap_type[w] != mjWRAP_JOINT) {
+      snprintf(why, size, "is not a fixed tendon");
+      return -1;
+    }
+    if (m->jnt_type[j] == mjJNT_SLIDE && axis_is(m, j, 0, 0, 1) && slide < 0) {
+      slide = j;
+      cslide = m->wrap_prm[w];
+    } else if (m->jnt_type[j] == mjJNT_HINGE && axis_is(m, j, 1, 0, 0) && hx < 0) {
+      hx = j;
+      cx = m->wrap_prm[w];
+    } else if (m->jnt_type[j] == mjJNT_HINGE && axis_is(m, j, 0, 1, 0) && hy < 0) {
+      hy = j;
+      cy = m->wrap_prm[w];
+    }
+  }
+  if (slide < 0 || hx < 0 || hy < 0 || cslide != 1.0) {
+    snprintf(why, size, "is not a slide along z (coefficient 1) and hinges about x and y");
+    return -1;
+  }
+  int node = m->jnt_bodyid[hx], lx = -1, ly = -1;
+  if (m->jnt_bodyid[hy] != node || link_kind(m, node, &lx, &ly) != 1) {
+    snprintf(why, size, "has hinges that are not one body's universal joint (two hinges, x and y)");
+    return -1;
+  }
+  int sb = m->jnt_bodyid[slide];
+  if (sb != node && m->body_parentid[sb] != node) {
+    snprintf(why, size, "has a slide that is neither in its link's node nor in the node's child");
+    return -1;
+  }
+  out->slide_qpos = m->jnt_qposadr[slide];
+  out->slide_dof = m->jnt_dofadr[slide];
+  out->x = -2.0 * cy;  // the coefficients are y / 2 (about x) and -x / 2 (about y)
+  out->y = 2.0 * cx;
+  return node;
+}
+
+static void check_arc_geometry(const mjModel* m, int instance, const Muscle* mu) {
+  if (!mu->arc_geometry) {
+    return;
+  }
+  if (mu->segments < 2) {
+    CONFIG_ERROR(m, instance, "config key 'arc_geometry' = 1 needs segmented muscles ('segments' > 1)%s", "");
+  }
+  char why[200];
+  for (int i = 0; i < m->nactuator; i++) {
+    if (m->actuator_plugin[i] != instance) {
+      continue;
+    }
+    int first = m->actuator_trnid[2 * i] + 1;
+    for (int s = 0; s < mu->segments; s++) {
+      ArcSegment seg;
+      if (arc_segment_of(m, first + s, &seg, why, sizeof(why)) < 0) {
+        const char* name = m->names + m->name_tendonadr[first + s];
+        CONFIG_ERROR(m, instance, "config key 'arc_geometry' = 1: segment tendon '%s' (%d) %s", name, first + s,
+                     why);
+      }
+    }
+  }
+}
+
+// The links every segment of this instance depends on (its own and all proximal ones), in body
+// order (a parent body comes before its children in MuJoCo), and the segments. Checked before.
+static ArcGeometry* arc_build(const mjModel* m, const Muscle* mu) {
+  int* index = (int*)malloc(sizeof(int) * (size_t)m->nbody);  // body -> link index, or -1
+  if (!index) {
+    return NULL;
+  }
+  for (int b = 0; b < m->nbody; b++) {
+    index[b] = -1;
+  }
+  int nseg = mu->nactuator * mu->segments, nlink = 0;
+  char why[200];
+  ArcSegment seg;
+  for (int k = 0; k < mu->nactuator; k++) {  // mark the links (and their proximal links)
+    int first = m->actuator_trnid[2 * mu->actuator[k]] + 1;
+    for (int s = 0; s < mu->segments; s++) {
+      int hx, hy;
+      for (int b = arc_segment_of(m, first + s, &seg, why, sizeof(why)); b > 0; b = m->body_parentid[b]) {
+        int kind = link_kind(m, b, &hx, &hy);
+        if (kind < 0) {
+          break;
+        }
+        if (kind == 1 && index[b] < 0) {
+          index[b] = 0;
+          nlink++;
+        }
+      }
+    }
+  }
+  ArcGeometry* g = arc_alloc(nlink, nseg);
+  if (!g) {
+    free(index);
+    return NULL;
+  }
+  int n = 0;
+  for (int b = 1; b < m->nbody; b++) {
+    if (index[b] < 0) {
+      continue;
+    }
+    int hx = -1, hy = -1;
+    link_kind(m, b, &hx, &hy);
+    ArcLink* L = &g->link[n];
+    L->qpos_a = m->jnt_qposadr[hx];
+    L->qpos_b = m->jnt_qposadr[hy];
+    L->dof_a = m->jnt_dofadr[hx];
+    L->dof_b = m->jnt_dofadr[hy];
+    L->x_first = hx < hy;  // joints of a body apply in order
+    L->parent = -1;
+    for (int p = m->body_parentid[b]; p > 0; p = m->body_parentid[p]) {
+      int px, py, kind = link_kind(m, p, &px, &py);
+      if (kind < 0) {
+        break;
+      }
+      if (kind == 1) {
+        L->parent = index[p];  // parents come first: already numbered
+        break;
+      }
+    }
+    index[b] = n++;
+  }
+  n = 0;
+  for (int k = 0; k < mu->nactuator; k++) {
+    int first = m->actuator_trnid[2 * mu->actuator[k]] + 1;
+    for (int s = 0; s < mu->segments; s++) {
+      int node = arc_segment_of(m, first + s, &g->seg[n], why, sizeof(why));
+      g->seg[n++].link = index[node];
+    }
+  }
+  free(index);
+  return g;
+}
+
+// The series of phi(t), v(t) = phi'(t) / sin t, s(t) = t / sin t, w(t) = s'(t) / sin t in t^2 up to
+// t^12 (below ARC_SERIES_BELOW; the next terms are below 1e-16 there), the closed forms above it
+// (where their cancellation costs less than 1e-14).
+#define ARC_SERIES_BELOW 0.25
+
+static double arc_poly(const double* c, double t2) {
+  double p = c[6];
+  for (int k = 5; k >= 0; k--) {
+    p = p * t2 + c[k];
+  }
+  return p;
+}
+
+typedef struct {
+  double theta, phi, v, s, w;
+} ArcAngle;
+
+static ArcAngle arc_angle(double sin_theta, double cos_theta) {
+  static const double kPhi[7] = {1.0, -1.0 / 12, -1.0 / 720, -1.0 / 30240, -1.0 / 1209600, -1.0 / 47900160,
+                                 -691.0 / 1307674368000.0};
+  static const double kV[7] = {-1.0 / 6, -1.0 / 30, -11.0 / 2520, -37.0 / 75600, -49.0 / 950400,
+                               -288731.0 / 54486432000.0, -352823.0 / 653837184000.0};
+  static const double kS[7] = {1.0, 1.0 / 6, 7.0 / 360, 31.0 / 15120, 127.0 / 604800, 73.0 / 3421440,
+                               1414477.0 / 653837184000.0};
+  static const double kW[7] = {1.0 / 3, 2.0 / 15, 2.0 / 63, 4.0 / 675, 2.0 / 2079, 2764.0 / 19348875,
+                               4.0 / 200475};
+  ArcAngle r;
+  double t = atan2(sin_theta, cos_theta);  // in [0, pi]
+  r.theta = t;
+  if (t < ARC_SERIES_BELOW) {
+    double t2 = t * t;
+    r.phi = arc_poly(kPhi, t2);
+    r.v = arc_poly(kV, t2);
+    r.s = arc_poly(kS, t2);
+    r.w = arc_poly(kW, t2);
+    return r;
+  }
+  double sin_half = sin(0.5 * t);
+  r.phi = 0.5 * t * cos(0.5 * t) / sin_half;
+  r.v = (sin_theta - t) / (4.0 * sin_half * sin_half * sin_theta);
+  r.s = t / sin_theta;
+  r.w = (sin_theta - t * cos_theta) / (sin_theta * sin_theta * sin_theta);
+  return r;
+}
+
+// Beyond ARC_EXACT_UP_TO rad of bend in one link (115 deg: a section at D disks bends up to
+// D x that exactly) a segment blends into the linear geometry l = e + (y' a - x' b) / 2 (and
+// the link's twist to 0), fully at ARC_LINEAR_FROM: the swing is singular at theta = pi (its
+// direction is undefined, the tangent length e no longer changes the arc, tan(theta/2)
+// diverges), and a link bent that far is far outside the muscles' admissible lengths anyway.
+// The blend weight is C2 in theta, so the segment lengths stay smooth and the forces
+// conservative.
+#define ARC_EXACT_UP_TO 2.0
+#define ARC_LINEAR_FROM 2.5
+
+// Per link: its swing (sigma, and the pieces of its derivatives), its twist and derivatives,
+// the blend weight.
+typedef struct {
+  double a, b;
+  double phi, v, s, w;
+  double sigma[2], u[2], du_da[2], du_db[2];
+  double theta_a, theta_b;  // sin a cos b and cos a sin b: d theta / d(a, b) times sin theta
+  double tau, tau_a, tau_b; // the link's twist, blended
+  double weight, weight_a, weight_b;  // 1: arc geometry, 0: linear; its derivatives in (a, b)
+  double twist_before;      // T: the twists of the proximal links
+} ArcLinkState;
+
+static void arc_link_state(const ArcLink* L, const mjtNum* qpos, ArcLinkState* st) {
+  double a = qpos[L->qpos_a], b = qpos[L->qpos_b];
+  double sa = sin(a), ca = cos(a), sb = sin(b), cb = cos(b);
+  st->a = a;
+  st->b = b;
+  if (L->x_first) {  // Q z = (sin b, -sin a cos b, cos a cos b)
+    st->u[0] = sa * cb;
+    st->u[1] = sb;
+    st->du_da[0] = ca * cb;
+    st->du_da[1] = 0.0;
+    st->du_db[0] = -sa * sb;
+    st->du_db[1] = cb;
+  } else {  // Q z = (cos a sin b, -sin a, cos a cos b)
+    st->u[0] = sa;
+    st->u[1] = ca * sb;
+    st->du_da[0] = ca;
+    st->du_da[1] = -sa * sb;
+    st->du_db[0] = 0.0;
+    st->du_db[1] = ca * cb;
+  }
+  st->theta_a = sa * cb;
+  st->theta_b = ca * sb;
+  double sin_theta = sqrt(st->u[0] * st->u[0] + st->u[1] * st->u[1]);
+  double theta = atan2(sin_theta, ca * cb);
+  st->weight = 1.0;
+  st->weight_a = st->weight_b = 0.0;
+  if (theta >= ARC_LINEAR_FROM) {
+    st->weight = 0.0;
+  } else if (theta > ARC_EXACT_UP_TO) {  // 1 - smootherstep(x), and its derivative along theta
+    double width = ARC_LINEAR_FROM - ARC_EXACT_UP_TO, x = (theta - ARC_EXACT_UP_TO) / width;
+    st->weight = 1.0 - x * x * x * (x * (6.0 * x - 15.0) + 10.0);
+    double slope = -30.0 * x * x * (1.0 - x) * (1.0 - x) / width / sin_theta;
+    st->weight_a = slope * st->theta_a;
+    st->weight_b = slope * st->theta_b;
+  }
+  st->tau = st->tau_a = st->tau_b = 0.0;
+  st->phi = 1.0;
+  st->v = st->s = st->w = 0.0;
+  st->sigma[0] = st->sigma[1] = 0.0;
+  if (st->weight == 0.0) {
+    return;
+  }
+  ArcAngle ang = arc_angle(sin_theta, ca * cb);
+  st->phi = ang.phi;
+  st->v = ang.v;
+  st->s = ang.s;
+  st->w = ang.w;
+  st->sigma[0] = ang.s * st->u[0];
+  st->sigma[1] = ang.s * st->u[1];
+  double sha = sin(0.5 * a), cha = cos(0.5 * a), shb = sin(0.5 * b), chb = cos(0.5 * b);
+  double p = sha * shb, q = cha * chb, sign = L->x_first ? 1.0 : -1.0;
+  double r2 = p * p + q * q;  // cos^2(theta / 2)
+  double tau = sign * 2.0 * atan2(p, q);
+  st->tau = st->weight * tau;
+  st->tau_a = st->weight * sign * 0.5 * sb / r2 + st->weight_a * tau;
+  st->tau_b = st->weight * sign * 0.5 * sa / r2 + st->weight_b * tau;
+}
+
+// Length of a segment and its derivatives (d/de, d/da, d/db, d/dT).
+static double arc_segment_length(const ArcSegment* sg, const ArcLinkState* st, double e, double grad[4]) {
+  double cT = cos(st->twist_before), sT = sin(st->twist_before);
+  double x = cT * sg->x + sT * sg->y, y = -sT * sg->x + cT * sg->y;  // Rz(-T) (x, y)
+  // the linear geometry (in the bundle's frame too)
+  double linear = e + 0.5 * (y * st->a - x * st->b);
+  double lin_grad[4] = {1.0, 0.5 * y, -0.5 * x, -0.5 * (x * st->a + y * st->b)};
+  double W = st->weight;
+  if (W == 0.0) {
+    for (int c = 0; c < 4; c++) {
+      grad[c] = lin_grad[c];
+    }
+    return linear;
+  }
+  double sigma_a[2], sigma_b[2];
+  for (int c = 0; c < 2; c++) {
+    sigma_a[c] = st->w * st->theta_a * st->u[c] + st->s * st->du_da[c];
+    sigma_b[c] = st->w * st->theta_b * st->u[c] + st->s * st->du_db[c];
+  }
+  double arc = e * st->phi + 0.5 * (y * st->sigma[0] - x * st->sigma[1]);
+  double arc_grad[4] = {
+      st->phi,
+      e * st->v * st->theta_a + 0.5 * (y * sigma_a[0] - x * sigma_a[1]),
+      e * st->v * st->theta_b + 0.5 * (y * sigma_b[0] - x * sigma_b[1]),
+      -0.5 * (x * st->sigma[0] + y * st->sigma[1]),
+  };
+  if (W == 1.0) {
+    for (int c = 0; c < 4; c++) {
+      grad[c] = arc_grad[c];
+    }
+    return arc;
+  }
+  for (int c = 0; c < 4; c++) {
+    grad[c] = W * arc_grad[c] + (1.0 - W) * lin_grad[c];
+  }
+  grad[1] += st->weight_a * (arc - linear);
+  grad[2] += st->weight_b * (arc - linear);
+  return W * arc + (1.0 - W) * linear;
+}
+
+// The segments' forces push(P, N l) along the gradients of their arc lengths, minus the whole
+// muscle's push(P, L) along the segments' fixed-tendon Jacobians (the actuator applies it).
+static void add_arc_segment_forces(const mjModel* m, mjData* d, const Muscle* mu) {
+  const ArcGeometry* g = mu->arc;
+  const int N = mu->segments;
+  mj_markStack(d);
+  ArcLinkState* st = (ArcLinkState*)mj_stackAllocByte(d, sizeof(ArcLinkState) * (size_t)g->nlink,
+                                                      _Alignof(ArcLinkState));
+  mjtNum* pull = mj_stackAllocNum(d, 2 * (size_t)g->nlink);  // sum F dl/dT per link, then beyond it
+  mjtNum* beyond = pull + g->nlink;
+  mjtNum* pressure = mj_stackAllocNum(d, (size_t)g->nseg);
+  mjtNum* length = mj_stackAllocNum(d, (size_t)g->nseg);
+  mjtNum* tension = mj_stackAllocNum(d, (size_t)g->nseg);
+  mjtNum* whole = mj_stackAllocNum(d, (size_t)g->nseg);
+  mjtNum* grad = mj_stackAllocNum(d, 4 * (size_t)g->nseg);
+  for (int k = 0; k < g->nlink; k++) {
+    arc_link_state(&g->link[k], d->qpos, &st[k]);
+    int p = g->link[k].parent;
+    st[k].twist_before = p < 0 ? 0.0 : st[p].twist_before + st[p].tau;
+    pull[k] = beyond[k] = 0.0;
+  }
+  for (int k = 0; k < mu->nactuator; k++) {
+    int i = mu->actuator[k];
+    double P = actuator_pressure(m, d, i);
+    double whole_push = -muscle_tension(mu, P, d->actuator_length[m->actuator_outadr[i]]);
+    for (int s = k * N; s < (k + 1) * N; s++) {
+      const ArcSegment* sg = &g->seg[s];
+      pressure[s] = P;
+      whole[s] = whole_push;
+      length[s] = N * arc_segment_length(sg, &st[sg->link], d->qpos[sg->slide_qpos], grad + 4 * s);
+    }
+  }
+  for (int first = 0; first < g->nseg; first += BATCH) {
+    int n = g->nseg - first < BATCH ? g->nseg - first : BATCH;
+    tension_batch(mu, n, pressure + first, length + first, tension + first);
+  }
+  for (int k = 0; k < mu->nactuator; k++) {
+    int first = m->actuator_trnid[2 * mu->actuator[k]] + 1;
+    for (int s = k * N; s < (k + 1) * N; s++) {
+      const ArcSegment* sg = &g->seg[s];
+      const ArcLink* L = &g->link[sg->link];
+      double F = -tension[s];
+      d->qfrc_passive[sg->slide_dof] += F * grad[4 * s];
+      d->qfrc_passive[L->dof_a] += F * grad[4 * s + 1];
+      d->qfrc_passive[L->dof_b] += F * grad[4 * s + 2];
+      pull[sg->link] += F * grad[4 * s + 3];
+      int t = first + s - k * N, adr = m->ten_J_rowadr[t];
+      for (int c = 0; c < m->ten_J_rownnz[t]; c++) {
+        d->qfrc_passive[m->ten_J_colind[adr + c]] -= whole[s] * d->ten_J[adr + c];
+      }
+    }
+  }
+  // a link's twist turns every distal link's muscles: its hinges get the sum of their dl/dT
+  for (int k = g->nlink - 1; k >= 0; k--) {
+    int p = g->link[k].parent;
+    if (p >= 0) {
+      beyond[p] += beyond[k] + pull[k];
+    }
+    d->qfrc_passive[g->link[k].dof_a] += beyond[k] * st[k].tau_a;
+    d->qfrc_passive[g->link[k].dof_b] += beyond[k] * st[k].tau_b;
+  }
+  mj_freeStack(d);
+}
+
 static int muscle_init(const mjModel* m, mjData* d, int instance) {
   init_data = d;  // a config error frees it (efam_fail): mj_initPlugin cannot, the error skips it
   init_instance = instance;
@@ -994,7 +1496,11 @@ static int muscle_init(const mjModel* m, mjData* d, int instance) {
 }
 
 static void muscle_destroy(mjData* d, int instance) {
-  free((void*)d->plugin_data[instance]);
+  Muscle* mu = (Muscle*)d->plugin_data[instance];
+  if (mu) {
+    free(mu->arc);
+  }
+  free(mu);
   d->plugin_data[instance] = 0;
 }
 
@@ -1007,6 +1513,9 @@ static void muscle_copy(mjData* dest, const mjModel* m, const mjData* src, int i
     return;
   }
   if (!to || to->nactuator != from->nactuator) {
+    if (to) {
+      free(to->arc);
+    }
     free(to);
     to = (Muscle*)malloc(sizeof(Muscle) + sizeof(int) * (size_t)from->nactuator);
     dest->plugin_data[instance] = (uintptr_t)to;
@@ -1014,8 +1523,17 @@ static void muscle_copy(mjData* dest, const mjModel* m, const mjData* src, int i
       mju_error(PLUGIN_NAME ": out of memory copying mjData");
       return;
     }
+    to->arc = NULL;
   }
+  struct ArcGeometry* own = to->arc;  // dest's own copy of the (read-only) arc geometry
   memcpy(to, from, sizeof(Muscle) + sizeof(int) * (size_t)from->nactuator);
+  to->arc = own;
+  if (from->arc && !to->arc) {
+    to->arc = arc_clone(from->arc);
+    if (!to->arc) {
+      mju_error(PLUGIN_NAME ": out of memory copying mjData");
+    }
+  }
 }
 
 // efam_effects.h: the effect terms' state (none when no effect is switched on)
