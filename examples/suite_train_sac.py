@@ -61,7 +61,7 @@ def baselines(seeds) -> dict:
 
     out = {}
     for name in ("model", "random"):
-        returns, successes = [], []
+        returns, successes, errors = [], [], []
         for seed in seeds:
             env = suite.load("bundle", "reach", task_kwargs={"random": int(seed)})
             policy = (
@@ -69,10 +69,15 @@ def baselines(seeds) -> dict:
                 if name == "model"
                 else controllers.RandomPolicy(env, int(seed))
             )
-            total, success, _ = controllers.run_episode(env, policy)
+            total, success, error = controllers.run_episode(env, policy)
             returns.append(total)
             successes.append(success)
-        out[name] = {"mean_return": float(np.mean(returns)), "success_rate": float(np.mean(successes))}
+            errors.append(error)
+        out[name] = {
+            "mean_return": float(np.mean(returns)),
+            "success_rate": float(np.mean(successes)),
+            "median_final_error_m": float(np.median(errors)),
+        }
     return out
 
 
@@ -103,21 +108,33 @@ def plot(curve: list[dict], reference: dict, out: Path, title: str) -> None:
 
     from efam_mujoco.files import save_figure
 
-    steps = np.array([p["steps"] for p in curve])
+    steps = np.array([p["steps"] for p in curve]) / 1000
     returns = np.array([p["mean_return"] for p in curve])
     spread = np.array([p["std_return"] for p in curve])
     success = np.array([p["success_rate"] for p in curve]) * 100
-    fig, (ax_r, ax_s) = plt.subplots(1, 2, figsize=(9.5, 3.4))
+    error_mm = np.array([p["median_final_error_m"] for p in curve]) * 1000
+    fig, (ax_r, ax_s, ax_e) = plt.subplots(1, 3, figsize=(12.5, 3.5))
     ax_r.fill_between(steps, returns - spread, returns + spread, alpha=0.2, color="C0", lw=0)
     ax_r.plot(steps, returns, "o-", ms=3, color="C0", label="SAC (mean, +-1 std)")
     ax_s.plot(steps, success, "o-", ms=3, color="C0", label="SAC")
+    ax_e.plot(steps, error_mm, "o-", ms=3, color="C0", label="SAC")
     for name, style, label in (("model", "--", "inverse statics + PI"), ("random", ":", "random actions")):
         ax_r.axhline(reference[name]["mean_return"], ls=style, color="k", label=label)
         ax_s.axhline(reference[name]["success_rate"] * 100, ls=style, color="k", label=label)
-    ax_r.set(xlabel="environment steps", ylabel="episode return (max 100)", title=title)
-    ax_s.set(xlabel="environment steps", ylabel="success: tip within 1 cm at the end, %", ylim=(-3, 103))
+        if "median_final_error_m" in reference[name]:
+            ax_e.axhline(reference[name]["median_final_error_m"] * 1000, ls=style, color="k", label=label)
+    ax_e.axhline(10.0, color="C3", lw=0.8, label="success radius")
+    ax_r.set(ylabel="episode return (max 100)", title=title)
+    ax_s.set(
+        ylabel="success: tip within 1 cm at the end, %",
+        ylim=(-3, 103),
+        title="deterministic policy, seeded evaluation episodes",
+    )
+    ax_e.set(ylabel="median final tip error, mm", yscale="log")
     ax_r.legend(fontsize=8, loc="center right")
-    for ax in (ax_r, ax_s):
+    ax_e.legend(fontsize=8, loc="upper right")
+    for ax in (ax_r, ax_s, ax_e):
+        ax.set_xlabel("environment steps (thousands)")
         ax.grid(alpha=0.3)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
