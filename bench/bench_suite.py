@@ -17,10 +17,16 @@
    episode ends): no MuJoCo warning, finite observations, rewards in [0, 1] (the unit tests
    run 1000 steps on the bundle tasks, 200 on the slower arm).
 
+4. **Reference** (``--reference-episodes N``, off by default: the continuum takes seconds per
+   solve). The controller's feed-forward solved on the suite's statics (the domain's own model)
+   against the same solve on the continuum reference, on ``bundle-reach`` seeds 0..N-1: CPU
+   time, the feed-forward's rest tip in the domain's model against the target, closed-loop
+   final error.
+
 Writes ``bench/results/suite.json`` (``--update`` keeps the sections not run).
 
     python bench/bench_suite.py [--episodes 50] [--steps 2000] [--skip-throughput] [--skip-control]
-                                [--skip-random-steps] [--update]
+                                [--skip-random-steps] [--reference-episodes 0] [--update]
 """
 
 from __future__ import annotations
@@ -151,6 +157,49 @@ def control(domain: str, task: str, episodes: int) -> dict:
     return out
 
 
+def reference_comparison(episodes: int) -> dict:
+    """The controller's feed-forward from the suite's statics (the domain's own MuJoCo model at
+    rest) against the same inverse statics on the continuum (Kirchhoff rod) reference, on
+    ``bundle-reach`` seeds 0..episodes-1: CPU time and forward solves of the inverse, the
+    feed-forward's rest tip in the domain's model against the target, and the closed-loop
+    episode's final error."""
+    from efam_mujoco.suite import arm_glue
+
+    out = {"episodes": episodes, "seeds": f"0..{episodes - 1}"}
+    for name, reference in (("suite_statics", None), ("continuum", _continuum)):
+        rows = []
+        for seed in progress(range(episodes), f"bundle-reach feed-forward from {name}", total=episodes):
+            env = suite.load("bundle", "reach", task_kwargs={"random": seed})
+            policy = controllers.InverseStaticsController(env, reference=reference)
+            started = _clock()
+            policy.reset(env.reset())
+            solve_s = _clock() - started
+            spec, target = env.task.arm_spec, env.task.target_in_base
+            plant_tip, _ = arm_glue.reference_tip(spec, policy.solution.fractions * spec.max_pressure_Pa)
+            _, success, error = controllers.run_episode(env, policy)
+            rows.append(
+                (solve_s, policy.solution.forward_solves, np.linalg.norm(plant_tip - target), error, success)
+            )
+        solve_s, solves, feedforward, final, success = (np.array(c, dtype=float) for c in zip(*rows))
+        out[name] = {
+            "inverse_statics_cpu_s_median": float(np.median(solve_s)),
+            "inverse_statics_cpu_s_worst": float(solve_s.max()),
+            "forward_solves_median": float(np.median(solves)),
+            "feedforward_error_in_domain_model_m_median": float(np.median(feedforward)),
+            "feedforward_error_in_domain_model_m_worst": float(feedforward.max()),
+            "final_error_m_median": float(np.median(final)),
+            "final_error_m_worst": float(final.max()),
+            "success_rate": float(success.mean()),
+        }
+    return out
+
+
+def _continuum(spec, pressures_Pa, payload_kg):
+    from efam_mujoco.suite import arm_glue
+
+    return arm_glue.continuum_tip(spec, pressures_Pa, payload_kg)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=50)
@@ -160,6 +209,10 @@ def main(argv=None) -> int:
     parser.add_argument("--skip-throughput", action="store_true")
     parser.add_argument("--skip-control", action="store_true")
     parser.add_argument("--skip-random-steps", action="store_true")
+    parser.add_argument(
+        "--reference-episodes", type=int, default=0,
+        help="bundle-reach episodes comparing the feed-forward from the suite's statics and from the continuum (slow: seconds per solve)",
+    )  # fmt: skip
     parser.add_argument("--update", action="store_true", help="keep the sections of --out that are not run")
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
@@ -228,6 +281,19 @@ def main(argv=None) -> int:
                 )
             if task == "reach":
                 ok &= result["model"]["success_rate"] >= GOALS[domain]
+    if args.reference_episodes > 0:
+        result = report["reference_comparison"] = reference_comparison(args.reference_episodes)
+        for name in ("suite_statics", "continuum"):
+            r = result[name]
+            print(
+                f"bundle-reach feed-forward from {name:13s}: inverse statics {r['inverse_statics_cpu_s_median']:.2f} s CPU "
+                f"median (worst {r['inverse_statics_cpu_s_worst']:.2f} s, {r['forward_solves_median']:.0f} solves); "
+                f"its rest tip in the domain's model {r['feedforward_error_in_domain_model_m_median'] * 1e3:.2f} mm "
+                f"from the target (worst {r['feedforward_error_in_domain_model_m_worst'] * 1e3:.2f} mm); closed loop: "
+                f"final error median {r['final_error_m_median'] * 1e3:.2f} mm, worst {r['final_error_m_worst'] * 1e3:.2f} mm, "
+                f"success {r['success_rate'] * 100:.0f} % of {args.reference_episodes}",
+                flush=True,
+            )
     write_json_atomic(args.out, report)
     print(f"wrote {args.out}; goals {'met' if ok else 'NOT met'}")
     return 0 if ok else 1

@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     fig, axes = plt.subplots(1, 2, figsize=(9, 4))
     for ax, (name, domain) in zip(axes, (("bundle (upright)", bundle_domain), ("arm (hanging)", arm_domain))):
         ws = workspace.compute_workspace(
-            domain.make_arm(), samples=args.samples, seed=0, limits=domain.LIMITS
+            domain.DOMAIN.make_arm(), samples=args.samples, seed=0, limits=domain.DOMAIN.limits
         )
         tips = ws.tips_m
         radial = np.hypot(tips[:, 0], tips[:, 1])
@@ -39,7 +39,7 @@ def main(argv=None) -> int:
         )
         ax.set(xlabel="distance from the axis, mm", ylabel="along the base axis, mm", aspect="equal")
         ax.set_title(
-            f"{name}: {args.samples} targets, bends <= {domain.LIMITS.max_bend_deg:.0f} deg/section",
+            f"{name}: {args.samples} targets, bends <= {domain.DOMAIN.limits.max_bend_deg:.0f} deg/section",
             fontsize=9,
         )
         fig.colorbar(sc, ax=ax, label="mean pressure fraction")

@@ -186,3 +186,48 @@ def test_pressure_lag_is_on_by_default_and_configurable():
     instant.reset()
     instant.step(np.full(3, 0.7))
     np.testing.assert_allclose(instant.physics.muscle_pressure_fractions(), 0.7)
+
+
+@pytest.mark.parametrize("domain,disks", [("bundle", 4), ("arm", 3)])
+def test_muscles_are_drawn_between_the_plates(domain, disks):
+    """Each muscle is drawn as one capsule per link, of its outer radius, running parallel to
+    the axis at the section radius from it when the arm is straight (equal pressures, no
+    gravity): the geometry of the paper's bundle, not read back from the drawing code."""
+    import mujoco
+
+    arm_options = {"gravity": False, "disks": disks}
+    env = suite.load(domain, "reach", task_kwargs={"random": 0, "arm_options": arm_options})
+    env.reset()
+    physics = env.physics
+    physics.data.qpos[:] = physics.model.qpos0  # the straight pose: equal pressures keep it straight
+    physics.data.qvel[:] = 0.0
+    physics.set_pressure_fractions(np.full(physics.model.nu, 0.5))
+    physics.step(1000)  # settle the length
+    spec = env.task.arm_spec
+    scene = mujoco.MjvScene(physics.model.ptr, 2000)
+    mujoco.mjv_updateScene(
+        physics.model.ptr, physics.data.ptr, mujoco.MjvOption(), None, mujoco.MjvCamera(),
+        mujoco.mjtCatBit.mjCAT_ALL, scene,
+    )  # fmt: skip
+    before = scene.ngeom
+    added = physics.draw_muscles(scene)
+    sections = len(spec.sections)
+    assert added == scene.ngeom - before == 3 * sections * disks
+    base, rotation = physics.base_frame()
+    geoms = scene.geoms[before : scene.ngeom]
+    for index, geom in enumerate(geoms):
+        section = spec.sections[index // (3 * disks)]
+        muscle = (index // disks) % 3
+        assert geom.type == mujoco.mjtGeom.mjGEOM_CAPSULE
+        assert geom.size[0] == pytest.approx(section.muscles[muscle].rest_outer_radius_m)
+        axis_in_base = rotation.T @ np.asarray(geom.mat).reshape(3, 3)[:, 2]
+        assert abs(axis_in_base[2]) == pytest.approx(1.0, abs=1e-6)  # parallel to the straight axis
+        centre = rotation.T @ (np.asarray(geom.pos) - base)
+        angle = section.angles_rad[muscle]
+        np.testing.assert_allclose(
+            centre[:2], section.radius_m * np.array([np.cos(angle), np.sin(angle)]), atol=1e-6
+        )
+    # the links' capsules stack up to the tip: their half-lengths add to the arm's length
+    tip_in_base = rotation.T @ (physics.tip_position() - base)
+    lengths = 2 * np.array([g.size[2] for g in geoms]).reshape(sections, 3, disks).sum(axis=2)
+    assert lengths.sum(axis=0) == pytest.approx(np.full(3, tip_in_base[2]), rel=1e-3)

@@ -48,6 +48,8 @@ _MATERIALS = {
     "target_highlight": (0.2, 0.75, 0.3, 0.45),
 }
 EFFECTOR_RADIUS_M = 0.008
+#: site group of the muscle anchors (hidden in MuJoCo's viewer, whose default shows groups 0-2)
+MUSCLE_SITE_GROUP = 5
 #: the force plate is stiff (MuJoCo's soft contacts scale with the light tip's effective mass:
 #: the defaults let a 100 N push sink centimetres into the plate)
 PLATE_SOLREF = (0.004, 1.0)
@@ -120,6 +122,7 @@ def build_scene(
         position = centre + offset
         world.add_camera(name=name, pos=position.tolist(), xyaxes=_look_at(position, centre))
 
+    _add_muscle_anchors(spec, arm_spec)
     tip_site = spec.site("tip")
     tip_body = tip_site.parent
     tip_body.add_geom(
@@ -160,6 +163,40 @@ def build_scene(
     return spec
 
 
+def _add_muscle_anchors(spec: mj.MjSpec, arm_spec) -> None:
+    """Invisible sites ``{muscle}_at{k}`` where each muscle crosses its section's base plate
+    (k = 0) and its spacer disks (k = 1..D), sized to the muscle's outer radius: what
+    :meth:`EfamPhysics.render` draws the muscles between (the muscles are fixed tendons, which
+    MuJoCo does not draw; drawing them at render time costs the physics step nothing)."""
+    chains = _section_chains([body.name for body in spec.bodies])
+    names = iter(arm_glue.muscle_names(arm_spec))
+    for section, chain in zip(arm_spec.sections, chains):
+        for muscle, (x, y) in zip(section.muscles, section.offsets_m()):
+            name = next(names)
+            for k, body in enumerate(chain):
+                spec.body(body).add_site(
+                    name=f"{name}_at{k}", pos=[float(x), float(y), 0.0], size=[muscle.rest_outer_radius_m, 0, 0],
+                    group=MUSCLE_SITE_GROUP, rgba=[0, 0, 0, 0],
+                )  # fmt: skip
+
+
+def _section_chains(body_names) -> list[list[str]]:
+    """Per section, the names of the bodies along its backbone: its base plate (the arm's
+    ``base`` or the previous section's end plate), then its disks ``s{j}d{k}`` in order."""
+    disks: dict[int, dict[int, str]] = collections.defaultdict(dict)
+    for name in body_names:
+        match = _DISK.match(name or "")
+        if match:
+            disks[int(match[1])][int(match[2])] = name
+    if not disks:
+        raise ValueError("model: no disk bodies named s{j}d{k}")
+    chains, start = [], "base"
+    for j in sorted(disks):
+        chains.append([start] + [disks[j][k] for k in sorted(disks[j])])
+        start = chains[-1][-1]
+    return chains
+
+
 def _name_unnamed(spec: mj.MjSpec) -> None:
     """Name every unnamed element (dm_control's suite wants all components named)."""
     for kind in ("geoms", "lights", "equalities", "cameras", "sites", "textures", "materials", "tendons"):
@@ -184,21 +221,9 @@ class _Layout:
 
     def __init__(self, model):
         names = [model.id2name(i, "body") for i in range(model.nbody)]
-        disks: dict[int, dict[int, int]] = collections.defaultdict(dict)
-        for body_id, name in enumerate(names):
-            match = _DISK.match(name or "")
-            if match:
-                disks[int(match[1])][int(match[2])] = body_id
-        if not disks:
-            raise ValueError("model: no disk bodies named s{j}d{k}")
         self.base = names.index("base")
         # per section: the bodies along its backbone, its base plate first
-        self.sections = []
-        start = self.base
-        for j in sorted(disks):
-            chain = [start] + [disks[j][k] for k in sorted(disks[j])]
-            self.sections.append(np.array(chain))
-            start = chain[-1]
+        self.sections = [np.array([names.index(n) for n in chain]) for chain in _section_chains(names)]
         # the whole backbone (base, then every disk) and each section's span of it
         self.backbone = np.concatenate([self.sections[0][:1]] + [chain[1:] for chain in self.sections])
         ends = np.cumsum([len(chain) - 1 for chain in self.sections])
@@ -220,6 +245,15 @@ class _Layout:
         self.act_adr = np.array(model.actuator_actadr)
         self.all_lagged = bool(np.all(self.act_adr >= 0))
         self.target_mocap = int(model.body_mocapid[model.name2id("target", "body")])
+        # per muscle: its anchor sites (base plate, then disks), width and colour, for drawing
+        site_names = [model.id2name(i, "site") for i in range(model.nsite)]
+        self.muscle_anchors = []
+        for name in self.actuator_names:
+            anchors = [i for i, site in enumerate(site_names) if (site or "").startswith(name + "_at")]
+            anchors.sort(key=lambda i: int(site_names[i][len(name) + 3 :]))
+            if anchors:
+                colour = model.tendon_rgba[model.name2id(name, "tendon")].copy()
+                self.muscle_anchors.append((np.array(anchors), float(model.site_size[anchors[0], 0]), colour))
 
 
 class _Views:
@@ -238,6 +272,7 @@ class _Views:
             "ctrl",
             "ten_length",
             "actuator_force",
+            "site_xpos",
         ):
             setattr(self, name, getattr(raw, name))
 
@@ -268,6 +303,46 @@ class EfamPhysics(mujoco.Physics):
         if views is None or views.owner is not self._data:  # new data after a reload or copy
             views = self.__dict__["_efam_views"] = _Views(self.data)
         return views
+
+    # -- rendering
+    def render(
+        self, height=240, width=320, camera_id=-1, overlays=(), depth=False, segmentation=False,
+        scene_option=None, render_flag_overrides=None, scene_callback=None,
+    ):  # fmt: skip
+        """``dm_control``'s ``Physics.render`` with the muscles drawn (see :meth:`draw_muscles`)
+        before any ``scene_callback`` of the caller."""
+
+        def callback(physics, scene):
+            physics.draw_muscles(scene)
+            if scene_callback is not None:
+                scene_callback(physics, scene)
+
+        return super().render(
+            height, width, camera_id, overlays, depth, segmentation, scene_option, render_flag_overrides,
+            scene_callback=callback,
+        )  # fmt: skip
+
+    def draw_muscles(self, scene) -> int:
+        """Add each muscle to a ``mujoco.MjvScene`` as capsules of its outer radius and its
+        tendon's colour, straight from plate to plate through its anchor sites (MuJoCo does not
+        draw the muscles' fixed tendons). Returns the number of capsules added (fewer when the
+        scene is full)."""
+        site_xpos = self.views.site_xpos
+        added = 0
+        for anchors, radius, colour in self.layout.muscle_anchors:
+            points = site_xpos[anchors]
+            for start, end in zip(points[:-1], points[1:]):
+                if scene.ngeom >= scene.maxgeom:
+                    return added
+                scene.ngeom += 1  # first: the bindings expose only the first ngeom geoms
+                geom = scene.geoms[scene.ngeom - 1]
+                mj.mjv_initGeom(
+                    geom, mj.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.zeros(9), colour
+                )
+                mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_CAPSULE, radius, start, end)
+                geom.category = mj.mjtCatBit.mjCAT_DYNAMIC
+                added += 1
+        return added
 
     # -- frames
     def base_frame(self):

@@ -69,6 +69,7 @@ class InverseStatics:
     jacobian_m: np.ndarray  # (3, muscles): d tip / d fraction, base frame
     tip_m: np.ndarray  # the reference's rest tip at ``fractions``
     seed: np.ndarray  # the one-arc seed
+    forward_solves: int = 0  # statics solves the inverse took
 
     def error_m(self, target_in_base) -> float:
         """Distance (m) from the reference tip of this solution to ``target_in_base``."""
@@ -82,13 +83,17 @@ def inverse_statics(
     tolerance_m: float = 1e-5,
     max_iterations: int = 20,
     regularisation: float = 1e-4,
+    reference=None,
 ) -> InverseStatics:
     """Solve the suite's statics for pressure fractions in [0, 1] that put the rest tip on
     the target: Gauss-Newton from :func:`cc_arc_pressures` with one finite-difference Jacobian
     and Broyden updates after it (each evaluation is a statics solve, the costly part),
     minimising ``|tip(u) - target|^2 + regularisation^2 |u - seed|^2`` (m^2): the pull to the
     seed only acts along the directions the tip does not see (a multi-section arm's
-    redundancy). Stops within ``tolerance_m`` of the target."""
+    redundancy). Stops within ``tolerance_m`` of the target.
+
+    ``reference(spec, pressures_Pa, payload_kg) -> tip`` replaces the suite's statics as the
+    forward map, e.g. :func:`.arm_glue.continuum_tip` (docs/suite.md compares the two)."""
     target = np.asarray(target_in_base, dtype=float)
     seed = cc_arc_pressures(spec, target)
 
@@ -96,6 +101,8 @@ def inverse_statics(
 
     def tip(u):  # the first solve from rest, the others from the previous rest state
         calls.append(None)
+        if reference is not None:
+            return np.asarray(reference(spec, u * spec.max_pressure_Pa, payload_kg), dtype=float)
         return arm_glue.reference_tip(
             spec, u * spec.max_pressure_Pa, payload_kg=payload_kg, warm=len(calls) > 1
         )[0]
@@ -124,7 +131,7 @@ def inverse_statics(
         # Broyden: the Jacobian takes the step's observed change
         jacobian += np.outer((x_new - x) - jacobian @ delta, delta) / (delta @ delta)
         u, x = u_new, x_new
-    return InverseStatics(u, jacobian, x, seed)
+    return InverseStatics(u, jacobian, x, seed, len(calls))
 
 
 def damped_pinv(jacobian, damping: float = 1e-3) -> np.ndarray:
@@ -166,9 +173,17 @@ class InverseStaticsController:
     name = "inverse statics + PI"
 
     def __init__(
-        self, env, kp: float | None = None, ki: float | None = None, damping_m_per_fraction: float = 0.01
+        self,
+        env,
+        kp: float | None = None,
+        ki: float | None = None,
+        damping_m_per_fraction: float = 0.01,
+        reference=None,
     ):
+        """``reference``: the forward statics the feed-forward inverts (see
+        :func:`inverse_statics`; by default the suite's statics, the domain's own model)."""
         self.env = env
+        self.reference = reference
         sections = len(env.task.arm_spec.sections)
         default_kp, default_ki = GAINS[min(sections, max(GAINS))]
         self.kp = default_kp if kp is None else kp
@@ -183,7 +198,7 @@ class InverseStaticsController:
         """Solve the inverse statics for the episode's target."""
         physics = self.env.physics
         target = physics.to_base(time_step.observation["target_position"])
-        self.solution = inverse_statics(self.env.task.arm_spec, target)
+        self.solution = inverse_statics(self.env.task.arm_spec, target, reference=self.reference)
         self._pinv = damped_pinv(self.solution.jacobian_m, self.damping)
         self._integral = np.zeros(3)
 

@@ -8,9 +8,11 @@ rest under admissible pressures, so every episode is solvable.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
-from dm_control.utils import rewards
+from dm_control.utils import containers, rewards
 
 from . import arm_glue, common, workspace
 
@@ -306,3 +308,71 @@ class Push(common.EfamTask):
         """Whether the plate force is within the tolerance of the target force."""
         bound = max(0.5, self.tolerance_fraction * self.target_force_N)
         return abs(physics.plate_force() - self.target_force_N) <= bound
+
+
+# ------------------------------------------------------------------- the tasks on a domain
+
+
+@dataclass(frozen=True)
+class Domain:
+    """What one domain of the suite sets: its arm, ``Physics`` class, workspace limits, reach
+    radius, payload and push-force ranges, episode length and control step."""
+
+    make_arm: Callable  # (**arm_options) -> ArmSpec: arm_options override its fields
+    physics_class: type
+    limits: workspace.WorkspaceLimits  # the part of the shape space targets and starts come from
+    target_radius_m: float  # reach, track, reach_payload: success radius
+    payload_range_kg: tuple[float, float]  # reach_payload: payload mass drawn per episode
+    push_force_range_N: tuple[float, float]  # push: target force drawn per episode
+    time_limit_s: float = 10.0  # 100 control steps
+    control_timestep_s: float = 0.1  # 10 Hz: twice the pressure lag's time constant
+
+    def environment(self, task_name, time_limit=None, random=None, environment_kwargs=None, arm_options=None):
+        """A ``control.Environment`` of task ``task_name`` on this domain's arm in its scene."""
+        spec = self.make_arm(**(arm_options or {}))
+        radius = {"target_radius_m": self.target_radius_m}
+        task_class, scene, task_options = {
+            "reach": (Reach, {}, radius),
+            "track": (Track, {}, radius),
+            "extend": (Extend, {}, {}),
+            "push": (Push, {"force_plate": True}, {"force_range_N": self.push_force_range_N}),
+            "reach_payload": (
+                ReachPayload, {"payload_max_kg": self.payload_range_kg[1]},
+                {**radius, "payload_range_kg": self.payload_range_kg},
+            ),
+        }[task_name]  # fmt: skip
+        task = task_class(spec, self.limits, random=random, **task_options)
+        return common.make_environment(
+            self.physics_class, spec, task, time_limit=self.time_limit_s if time_limit is None else time_limit,
+            control_timestep=self.control_timestep_s, environment_kwargs=environment_kwargs,
+            target_radius_m=self.target_radius_m, **scene,
+        )  # fmt: skip
+
+
+def make_suite(domain: Domain) -> containers.TaggedTasks:
+    """dm_control's task registry of ``domain``: ``reach``, ``track``, ``extend``, ``push``
+    (tagged ``benchmarking``) and ``reach_payload`` (``extra``), each a function
+    ``(time_limit, random, environment_kwargs, arm_options) -> Environment``."""
+    radius_cm = f"{domain.target_radius_m * 100:g} cm"
+    force_N = "{:g}-{:g} N".format(*domain.push_force_range_N)
+    payload_g = "{:g}-{:g} g".format(*(1000 * m for m in domain.payload_range_kg))
+    docs = {
+        "reach": ("benchmarking", f"Tip to a random reachable target, within {radius_cm}."),
+        "track": ("benchmarking", f"Tip within {radius_cm} of a target that circles the axis every 5-10 s."),
+        "extend": ("benchmarking", "Every section's length to a random target, within 2 mm."),
+        "push": ("benchmarking", f"Press a force plate across the tip's path with a target force of {force_N}."),
+        "reach_payload": ("extra", f"``reach`` with an unobserved payload of {payload_g} on the tip, drawn per episode."),
+    }  # fmt: skip
+    suite = containers.TaggedTasks()
+    for name, (tag, doc) in docs.items():
+        suite.add(tag)(_task_function(domain, name, doc))
+    return suite
+
+
+def _task_function(domain: Domain, name: str, doc: str):
+    def task(time_limit=None, random=None, environment_kwargs=None, arm_options=None):
+        return domain.environment(name, time_limit, random, environment_kwargs, arm_options)
+
+    task.__name__ = task.__qualname__ = name
+    task.__doc__ = doc
+    return task
