@@ -225,15 +225,11 @@ def fit_calibration(rows: list[dict]) -> Calibration:
 
         return minimize(nll, np.array(w0), method="Nelder-Mead", options={"maxiter": 4000}).x
 
-    from efam_mujoco.diagnose.confidence import outside_supported
-
     effect_rows, none_rows = [], []
     for r in rows:
         raw = r["raw"]
-        ev = r.get("evidence") or {}
         effects = {k: v for k, v in raw.items() if k != "none"}
-        # only where the data let 'outside' compete (elsewhere the maps are not applied)
-        if effects and outside_supported(r["dd_gain"], ev.get("dd_z"), ev.get("excess_left")):
+        if effects:
             top = max(effects, key=effects.get)
             right = r["kind"] in ("single", "two") and r.get("shows", True) and top in r["truth"]
             weight = sum(effects.values())
@@ -241,12 +237,10 @@ def fit_calibration(rows: list[dict]) -> Calibration:
                 effect_rows.append(
                     (np.clip(r["excess_cut"], -1, 1), np.clip(r["dd_gain"], 0, 1), float(right), weight)
                 )
-        if raw.get("none", 0) > 0 and outside_supported(r["dd_gain_none"], ev.get("dd_z_none"), r["excess"]):
+        if raw.get("none", 0) > 0:
             none_rows.append((np.clip(r["excess"], 0, 1), np.clip(r["dd_gain_none"], 0, 1),
                               float(r["kind"] == "clean" or not r.get("shows", True)), raw["none"]))  # fmt: skip
-    print(
-        f"calibration rows: {len(effect_rows)} won by an effect, {len(none_rows)} by none (outside supported)"
-    )
+    print(f"calibration rows: {len(effect_rows)} won by an effect, {len(none_rows)} by none")
     w = logistic_fit(np.array(effect_rows), [0.0, 3.0, -10.0])
     wn = logistic_fit(np.array(none_rows), [3.0, 0.0, -10.0])
     return Calibration(concentration=CALIBRATION.concentration, a=float(w[0]), b=float(w[1]), c=float(w[2]),

@@ -212,11 +212,14 @@ def diagnose(
     # the paired evidence over blocks: every library hypothesis's held-out error per block, and
     # whether the data-driven correction's held-out gain stands out of the block-to-block spread
     sse = {k: block_sse(v, block) for k, v in heldout.items() if v is not None}
-    best_rms = singles[best_single].heldout_rms if best_single else base.heldout_rms
-    excess_left = max(1.0 - noise**2 / max(best_rms**2, 1e-300), 0.0)
-    judged = verdict(raw, cut, corr_best.gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
-                     pair=pair, block_sse=sse, dd_z=_dd_z(corr_best, block), dd_z_none=_dd_z(corr_none, block),
-                     excess_left=excess_left)  # fmt: skip
+    # what the named terms leave: after the kept ones (one or two), else after the best single
+    on_top = (
+        (final, corr) if kept else (singles[best_single], corr_best) if best_single else (base, corr_none)
+    )
+    excess_left = max(1.0 - noise**2 / max(on_top[0].heldout_rms ** 2, 1e-300), 0.0)
+    dd_z, dd_z_none = _dd_z(on_top[1], block), _dd_z(corr_none, block)
+    judged = verdict(raw, cut, on_top[1].gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
+                     pair=pair, block_sse=sse, dd_z=dd_z, dd_z_none=dd_z_none, excess_left=excess_left)  # fmt: skip
     unexplained = _unexplained(ctx, labels, force - final.prediction, noise, corr)
     design = None
     if judged.ambiguous and next_experiment:
@@ -272,7 +275,7 @@ def diagnose(
         predicted_before=predicted_before, predicted_after=predicted_after,
         sources=[str(r.meta.get("source", "")) for r in recordings],
         evidence={"block_sse": {k: v.tolist() for k, v in sse.items()}, "excess_left": excess_left,
-                  "dd_z": _dd_z(corr_best, block), "dd_z_none": _dd_z(corr_none, block)},
+                  "dd_z": dd_z, "dd_z_none": dd_z_none},
         verdict=judged, correction=corr, unexplained=unexplained, next_experiment=design,
         structure=labels.describe(),
         heldout_residual_before=base.heldout_residual, heldout_residual_after=final.heldout_residual,

@@ -27,15 +27,16 @@ disjoint from the benchmark's; ``bench/bench_diagnose.py --calibrate``); the ben
 the expected calibration error on other seeds.
 
 **Does anything outside the library compete?** Only when the data support it: the unnamed
-data-driven correction (``datadriven``) fitted on top of the best single term lowers its held-out
-error by at least ``DD_MIN_GAIN`` and significantly (a paired test over the same blocks:
-``paired_z`` >= ``Z_SEPARATE``), or the best term leaves a held-out mean square at least
-``EXCESS_UNEXPLAINED`` above the noise floor (likewise for ``none`` when the model alone predicts
-best). Otherwise the library hypotheses share all the probability: a clean file whose
-correction gains 1 % is not doubted.
+data-driven correction (``datadriven``) fitted on top of the library's winner (the kept terms)
+lowers its held-out error by at least ``DD_MIN_GAIN`` and significantly (a paired test over the
+same blocks: ``paired_z`` >= ``Z_SEPARATE``); on top of ``none`` (the model alone predicts best),
+also when its held-out mean square stands ``EXCESS_UNEXPLAINED`` above the noise floor.
+Otherwise outside is neither an answer nor a contender, and its share of the probability is
+reported as ``unresolved`` (the calibrated doubt about the name): a clean file whose correction
+gains 1 % is not doubted with an alternative.
 
-**Reported.** p(none), p(each effect) = p_boot(effect) x p_physics, and p(outside) = the rest of
-the effects' share (p_physics = 1 and p_none's factor = 1 when outside is not supported). The
+**Reported.** p(none), p(each effect) = p_boot(effect) x p_physics, and p(outside) (or
+``unresolved``) = the rest. The
 answer is the most probable hypothesis; it is *confident* when its probability is at least
 ``CONFIDENT``. Otherwise the runner-up is tested against it: two library hypotheses (or ``none``)
 *cannot be separated* when the paired test over blocks of their held-out squared errors (the
@@ -66,6 +67,7 @@ Z_SEPARATE = 2.0  # paired z over blocks: two hypotheses this far apart are told
 ODDS_SEPARATE = 3.0  # posterior odds a named hypothesis needs over 'outside' to be told apart
 DD_MIN_GAIN = 0.03  # the data-driven correction must lower the held-out RMS by 3 % ...
 EXCESS_UNEXPLAINED = 0.5  # ... or the held-out mean square stand 2x the noise's (RMS x 1.41)
+UNRESOLVED = "unresolved"  # the maps' doubt where the data support nothing outside the library
 CALIBRATION_SEEDS = (70000, 70099)
 
 
@@ -265,11 +267,14 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     (optional; without it every split that leaves the answer under ``CONFIDENT`` is ambiguous
     and outside always competes): ``block_sse`` hypothesis -> held-out squared error per block;
     ``dd_z``, ``dd_z_none``: paired z of the data-driven gain on the best term and on none;
-    ``excess_left``: the best term's held-out mean square above the noise, as a share."""
-    support = outside_supported(dd_gain, dd_z, excess_left)
+    ``excess_left``: the kept terms' held-out mean square above the noise, as a share (reported;
+    it does not let outside in by itself)."""
+    # on top of a named term only the correction's paired test lets outside in: the excess a term
+    # leaves is also what an in-library effect in another form, or a second one, leaves
+    support = outside_supported(dd_gain, dd_z, None)
     support_none = outside_supported(dd_gain_none, dd_z_none, excess)
-    q = named_physics_probability(excess_cut, dd_gain, cal) if support else 1.0
-    q0 = none_probability(excess, dd_gain_none, cal) if support_none else 1.0
+    q = named_physics_probability(excess_cut, dd_gain, cal)
+    q0 = none_probability(excess, dd_gain_none, cal)
     p_none = raw.get("none", 0.0)
     probs = {"none": p_none * q0}
     effects = {h: p for h, p in raw.items() if h != "none"}
@@ -278,7 +283,14 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     probs[OUTSIDE] = sum(effects.values()) * (1.0 - q) + p_none * (1.0 - q0)
     total = sum(probs.values()) or 1.0
     probs = {h: p / total for h, p in probs.items()}
-    ranked = sorted(probs.items(), key=lambda kv: -kv[1])
+    # 'outside the library' is an answer, or a contender, only where the data support it on top
+    # of the library's winner (the best effect, or none when the model alone predicts best);
+    # elsewhere its share is the calibrated doubt about the name, reported as 'unresolved'
+    library_top = max(raw, key=raw.get) if raw else "none"
+    outside_ok = support_none if library_top == "none" else support
+    if not outside_ok:
+        probs[UNRESOLVED] = probs.pop(OUTSIDE)
+    ranked = sorted(((h, p) for h, p in probs.items() if h != UNRESOLVED), key=lambda kv: -kv[1])
     answer, p1 = ranked[0]
     second, p2 = ranked[1] if len(ranked) > 1 else ("", 0.0)
     confident = p1 >= CONFIDENT
@@ -300,6 +312,6 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
         probabilities=probs, raw=raw, answer=answer, probability=p1, confident=confident, both=both,
         ambiguous=ambiguous, contenders=[answer, second] if (ambiguous or both) else [answer],
         physics_probability=q, excess_cut=excess_cut, dd_gain=dd_gain, n_blocks=n_blocks,
-        excess=excess, dd_gain_none=dd_gain_none, separation_z=z, outside_supported=support or support_none,
+        excess=excess, dd_gain_none=dd_gain_none, separation_z=z, outside_supported=outside_ok,
         tentative=not confident and not ambiguous,
     )  # fmt: skip
