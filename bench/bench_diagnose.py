@@ -192,7 +192,7 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def print_summary(s: dict) -> None:
-    keys = ("n", "top1_confident", "confident", "false_alarm", "ambiguous_in_library", "ece",
+    keys = ("n", "top1_confident", "confident", "false_alarm", "ambiguous_in_library", "tentative_in_library", "ece",
             "median_heldout_reduction", "outside_wrong_name_p08", "outside_dd_improves", "next_tried", "next_resolved")  # fmt: skip
     print(f"\n{'family':12s}" + "".join(f"{k[:14]:>15s}" for k in keys))
     for fam, b in s["by_family"].items():
@@ -411,7 +411,7 @@ def main(argv=None) -> int:
 
 def _line(row: dict, k: int, n: int) -> None:
     mark = "ok " if row["correct"] else "BAD"
-    flag = "conf" if row["confident"] else "AMB "
+    flag = "conf" if row["confident"] else "AMB " if row["ambiguous"] else "tent"
     nxt = ""
     if row["next"]:
         nxt = f" next {row['next']['experiment']} -> {row['next']['answer']} ({'resolved' if row['next']['resolved'] else 'not resolved'})"
