@@ -76,13 +76,13 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.026  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 5.064
-    c: float = -4.584
+    a: float = -2.203  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 5.251
+    c: float = -7.933
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = 0.946  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
-    bn: float = -5.273
-    cn: float = -6.338
+    an: float = 2.339  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
+    bn: float = -7.842
+    cn: float = -7.964
 
 
 CALIBRATION = Calibration()
