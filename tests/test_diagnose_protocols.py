@@ -9,7 +9,7 @@ import pytest
 from efam_mujoco import load_muscle
 from efam_mujoco.diagnose import diagnose
 from efam_mujoco.diagnose import virtual_bench as V
-from efam_mujoco.diagnose.confidence import OUTSIDE, bootstrap, verdict
+from efam_mujoco.diagnose.confidence import OUTSIDE, block_sse, bootstrap, paired_z, verdict
 from efam_mujoco.diagnose.design import recommend
 from efam_mujoco.diagnose.effects import Context, EffectModel
 from efam_mujoco.diagnose.model import _deadband_hi
@@ -81,6 +81,44 @@ def test_bootstrap_is_sure_of_a_clear_winner_and_splits_a_tie():
     # structured residual the best term leaves (a large data-driven gain): not the physics
     v = verdict({"none": 0.0, "a": 1.0}, excess_cut=0.3, dd_gain=0.4, n_blocks=30)
     assert v.answer == OUTSIDE
+
+
+def test_paired_test_over_blocks_separates_a_real_difference_and_not_noise():
+    rng = np.random.default_rng(1)
+    n, blocks = 3000, np.repeat(np.arange(30), 100)
+    a, b = rng.normal(0, 1, n), rng.normal(0, 1, n)
+    # two models with the same error level: the held-out difference is noise, |z| small
+    assert abs(paired_z(block_sse(a, blocks), block_sse(b, blocks))) < 3
+    # one model misses a slow structure of 0.5 x the noise: clearly separated, in its favour
+    worse = a + 0.5 * np.sin(np.arange(n) / 40)
+    assert paired_z(block_sse(worse, blocks), block_sse(a, blocks)) > 4
+
+
+def test_a_clean_file_is_not_doubted_when_the_correction_gains_one_percent():
+    # the issue's example: none wins every draw, the held-out mean square 8 % above the noise,
+    # the data-driven correction gains 1 %, not significantly: outside does not compete
+    sse = {"none": np.ones(30), "friction": np.ones(30) * 1.01}
+    v = verdict({"none": 1.0, "friction": 0.0}, excess_cut=0.1, dd_gain=0.01, n_blocks=30, excess=0.08,
+                dd_gain_none=0.01, block_sse=sse, dd_z=0.8, dd_z_none=0.8, excess_left=0.08)  # fmt: skip
+    assert v.answer == "none" and not v.ambiguous and not v.outside_supported
+    assert OUTSIDE not in v.probabilities  # the maps' doubt is reported as unresolved, not as outside
+    # the same file with a large, significant data-driven gain: outside competes
+    v = verdict({"none": 1.0, "friction": 0.0}, excess_cut=0.1, dd_gain=0.4, n_blocks=30, excess=0.8,
+                dd_gain_none=0.4, block_sse=sse, dd_z=6.0, dd_z_none=6.0, excess_left=0.8)  # fmt: skip
+    assert v.probabilities[OUTSIDE] > 0.5
+
+
+def test_two_effects_are_ambiguous_only_when_the_paired_test_cannot_separate_them():
+    rng = np.random.default_rng(2)
+    base = 1 + 0.1 * rng.random(40)
+    close = {"none": base * 3, "a": base, "b": base * (1 + 0.02 * rng.normal(size=40))}
+    v = verdict({"a": 0.55, "b": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=close,
+                dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    assert v.ambiguous and set(v.contenders) == {"a", "b"}
+    apart = {"none": base * 3, "a": base, "b": base * 1.5}
+    v = verdict({"a": 0.7, "b": 0.3}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=apart,
+                dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    assert v.answer == "a" and not v.ambiguous and v.tentative and "tentative" in v.words()
 
 
 # ---------------------------------------------------------------------------- end to end

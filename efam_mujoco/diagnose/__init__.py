@@ -26,7 +26,7 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..recordings import Recording
-from .confidence import CALIBRATION, OUTSIDE, Verdict, blocks, bootstrap, verdict
+from .confidence import CALIBRATION, OUTSIDE, Verdict, block_sse, blocks, bootstrap, paired_z, verdict
 from .datadriven import Corrected, Correction, correction
 from .design import recommend, stroke_speed
 from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
@@ -70,6 +70,7 @@ class Diagnosis:
     predicted_before: np.ndarray = field(repr=False, default=None)
     predicted_after: np.ndarray = field(repr=False, default=None)
     sources: list[str] = field(default_factory=list)
+    evidence: dict = field(default_factory=dict)  # the verdict's inputs (block errors, paired z)
     verdict: Verdict | None = None  # probabilities, the answer, ambiguity (``confidence``)
     correction: Correction | None = None  # the unnamed data-driven correction (``datadriven``)
     unexplained: dict = field(default_factory=dict)  # structured residual left, where
@@ -208,8 +209,17 @@ def diagnose(
     cut = notes.get(best_single, {}).get("excess_cut", 0.0) if best_single else 0.0
     excess = max(1.0 - noise**2 / max(base.heldout_rms**2, 1e-300), 0.0)
     pair = tuple(kept[-1].names[:2]) if len(kept) >= 2 else None
-    judged = verdict(raw, cut, corr_best.gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
-                     pair=pair)  # fmt: skip
+    # the paired evidence over blocks: every library hypothesis's held-out error per block, and
+    # whether the data-driven correction's held-out gain stands out of the block-to-block spread
+    sse = {k: block_sse(v, block) for k, v in heldout.items() if v is not None}
+    # what the named terms leave: after the kept ones (one or two), else after the best single
+    on_top = (
+        (final, corr) if kept else (singles[best_single], corr_best) if best_single else (base, corr_none)
+    )
+    excess_left = max(1.0 - noise**2 / max(on_top[0].heldout_rms ** 2, 1e-300), 0.0)
+    dd_z, dd_z_none = _dd_z(on_top[1], block), _dd_z(corr_none, block)
+    judged = verdict(raw, cut, on_top[1].gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
+                     pair=pair, block_sse=sse, dd_z=dd_z, dd_z_none=dd_z_none, excess_left=excess_left)  # fmt: skip
     unexplained = _unexplained(ctx, labels, force - final.prediction, noise, corr)
     design = None
     if judged.ambiguous and next_experiment:
@@ -264,10 +274,21 @@ def diagnose(
         ctx=ctx, labels=labels, force=force,
         predicted_before=predicted_before, predicted_after=predicted_after,
         sources=[str(r.meta.get("source", "")) for r in recordings],
+        evidence={"block_sse": {k: v.tolist() for k, v in sse.items()}, "excess_left": excess_left,
+                  "dd_z": dd_z, "dd_z_none": dd_z_none},
         verdict=judged, correction=corr, unexplained=unexplained, next_experiment=design,
         structure=labels.describe(),
         heldout_residual_before=base.heldout_residual, heldout_residual_after=final.heldout_residual,
     )  # fmt: skip
+
+
+def _dd_z(corr: Correction, block: np.ndarray) -> float:
+    """Paired z over blocks of the data-driven correction's held-out gain (0: none was reported)."""
+    if corr.heldout_residual_before is None or not corr.terms:
+        return 0.0
+    return paired_z(
+        block_sse(corr.heldout_residual_before, block), block_sse(corr.heldout_residual_after, block)
+    )
 
 
 def _agree(kept: list[Fit], raw: dict, singles: dict, engine: Engine, base: Fit, noise: float) -> list[Fit]:

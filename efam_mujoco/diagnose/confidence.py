@@ -26,11 +26,26 @@ concentration, were fitted on calibration cases of the virtual bench (seeds ``CA
 disjoint from the benchmark's; ``bench/bench_diagnose.py --calibrate``); the benchmark measures
 the expected calibration error on other seeds.
 
-**Reported.** p(none), p(each effect) = p_boot(effect) x p_physics, and p(outside) = the rest of
-the effects' share. The answer is the most probable hypothesis; it is *confident* when its
-probability is at least ``CONFIDENT``; otherwise, when the two most probable together hold at
-least ``PAIR`` and the first holds less than ``CONFIDENT``, the result is *ambiguous* and both are
-named (``design`` then proposes the experiment that separates them).
+**Does anything outside the library compete?** Only when the data support it: the unnamed
+data-driven correction (``datadriven``) fitted on top of the library's winner (the kept terms)
+lowers its held-out error by at least ``DD_MIN_GAIN`` and significantly (a paired test over the
+same blocks: ``paired_z`` >= ``Z_SEPARATE``); on top of ``none`` (the model alone predicts best),
+also when its held-out mean square stands ``EXCESS_UNEXPLAINED`` above the noise floor.
+Otherwise outside is neither an answer nor a contender, and its share of the probability is
+reported as ``unresolved`` (the calibrated doubt about the name): a clean file whose correction
+gains 1 % is not doubted with an alternative.
+
+**Reported.** p(none), p(each effect) = p_boot(effect) x p_physics, and p(outside) (or
+``unresolved``) = the rest. The
+answer is the most probable hypothesis; it is *confident* when its probability is at least
+``CONFIDENT``. Otherwise the runner-up is tested against it: two library hypotheses (or ``none``)
+*cannot be separated* when the paired test over blocks of their held-out squared errors (the
+held-out log-likelihood difference against its own spread between blocks) gives
+|z| < ``Z_SEPARATE``; a library hypothesis and ``outside the library`` cannot be separated when
+their posterior odds are below ``ODDS_SEPARATE`` (a Bayes factor under 3, "not worth more than a
+bare mention"). Only then is the result *ambiguous* and both are named (``design`` then proposes
+the experiment that separates them); an answer neither confident nor ambiguous is *tentative*:
+stated with its probability, the runner-up clearly behind it.
 """
 
 from __future__ import annotations
@@ -48,6 +63,11 @@ MIN_GAIN = 0.03
 CONFIDENT = 0.8
 PAIR = 0.0  # any split between the best two that leaves the first under CONFIDENT is ambiguous
 OUTSIDE = "outside_library"
+Z_SEPARATE = 2.0  # paired z over blocks: two hypotheses this far apart are told apart
+ODDS_SEPARATE = 3.0  # posterior odds a named hypothesis needs over 'outside' to be told apart
+DD_MIN_GAIN = 0.03  # the data-driven correction must lower the held-out RMS by 3 % ...
+EXCESS_UNEXPLAINED = 0.5  # ... or the held-out mean square stand 2x the noise's (RMS x 1.41)
+UNRESOLVED = "unresolved"  # the maps' doubt where the data support nothing outside the library
 CALIBRATION_SEEDS = (70000, 70099)
 
 
@@ -56,13 +76,13 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.026  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 5.064
-    c: float = -4.584
+    a: float = -2.203  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 5.251
+    c: float = -7.933
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = 0.946  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
-    bn: float = -5.273
-    cn: float = -6.338
+    an: float = 2.339  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain)))
+    bn: float = -7.842
+    cn: float = -7.964
 
 
 CALIBRATION = Calibration()
@@ -115,6 +135,40 @@ def bootstrap(residuals: dict[str, np.ndarray], block: np.ndarray, margin: float
     return {h: float(wins[i] / draws) for i, h in enumerate(names)}
 
 
+def block_sse(residual: np.ndarray, block: np.ndarray) -> np.ndarray:
+    """Sum of squared held-out residual (N^2) in every block that has samples."""
+    nb = int(block.max()) + 1
+    sse = np.bincount(block, weights=np.asarray(residual, float) ** 2, minlength=nb)
+    return sse[np.bincount(block, minlength=nb) > 0]
+
+
+def paired_z(sse_a, sse_b, scale_b: float = 1.0) -> float:
+    """Paired test over blocks: mean per-block difference of held-out squared error (a less b,
+    b's scaled by ``scale_b``) over its standard error. Positive: ``b`` predicts unseen blocks
+    better; |z| < ``Z_SEPARATE``: the data cannot tell the two apart. Under a Gaussian noise
+    model this is the held-out log-likelihood difference over its block-to-block spread."""
+    d = np.asarray(sse_a, float) - scale_b * np.asarray(sse_b, float)
+    if len(d) < 3:
+        return 0.0
+    se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
+    mean = float(np.mean(d))
+    if se <= 1e-300:
+        return 0.0 if abs(mean) <= 1e-300 else math.copysign(1e6, mean)
+    return mean / se
+
+
+def _penalty(h: str, margin: float = MIN_GAIN) -> float:
+    return 1.0 if h == "none" else 1.0 / (1.0 - margin) ** 2
+
+
+def separation(block_sse: dict, a: str, b: str) -> float | None:
+    """Paired z between two library hypotheses (``none`` or effects) with the relevance margin an
+    effect must beat ``none`` by; positive: ``b`` is better. None when either was not scored."""
+    if a not in block_sse or b not in block_sse:
+        return None
+    return paired_z(np.asarray(block_sse[a]) * _penalty(a), block_sse[b], _penalty(b))
+
+
 def none_probability(excess: float, dd_gain: float, cal: Calibration = CALIBRATION) -> float:
     """Probability that nothing is missing, when the model alone predicts best: it falls with the
     share of the held-out mean square above the noise floor (``excess``) and with the held-out
@@ -147,6 +201,9 @@ class Verdict:
     excess: float = 0.0
     dd_gain_none: float = 0.0
     both: bool = False  # the two contenders are both needed (the pair pays over either alone)
+    separation_z: float | None = None  # paired z between answer and runner-up (library pairs)
+    outside_supported: bool = True  # the data support an 'outside the library' contender
+    tentative: bool = False  # neither confident nor ambiguous: the runner-up is clearly behind
 
     def words(self) -> str:
         """The answer in one sentence: the winner (or the two tied hypotheses) and the leading probabilities."""
@@ -161,6 +218,11 @@ class Verdict:
             )
         if self.confident:
             return f"Answer: {self.answer} (p = {self.probability:.2f}). Probabilities: {spread}."
+        if self.tentative:
+            return (
+                f"Answer (tentative): {self.answer} (p = {self.probability:.2f}); the data separate it from "
+                f"the runner-up, but not with confidence. Probabilities: {spread}."
+            )
         return (
             f"AMBIGUOUS: these data cannot separate {self.contenders[0]} and {self.contenders[1]} "
             f"(p = {self.probabilities[self.contenders[0]]:.2f} and {self.probabilities[self.contenders[1]]:.2f}). "
@@ -175,17 +237,42 @@ class Verdict:
             "contenders": self.contenders, "both_needed": self.both, "physics_probability": self.physics_probability,
             "excess_cut": self.excess_cut, "datadriven_gain": self.dd_gain, "blocks": self.n_blocks,
             "excess_over_noise": self.excess, "datadriven_gain_on_none": self.dd_gain_none,
+            "separation_z": self.separation_z, "outside_supported": self.outside_supported,
+            "tentative": self.tentative,
         }  # fmt: skip
+
+
+def outside_supported(dd_gain: float, dd_z: float | None, excess_left: float | None) -> bool:
+    """Whether 'outside the library' may compete on top of a hypothesis: its data-driven
+    correction lowers the held-out RMS materially (``DD_MIN_GAIN``) and significantly (paired
+    z >= ``Z_SEPARATE``), or the hypothesis leaves a large held-out excess over the noise. Unknown
+    evidence (None) supports it (the caller did not run the tests)."""
+    if dd_z is None:
+        return True
+    if dd_gain >= DD_MIN_GAIN and dd_z >= Z_SEPARATE:
+        return True
+    return excess_left is not None and excess_left >= EXCESS_UNEXPLAINED
 
 
 def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: int,
             cal: Calibration = CALIBRATION, excess: float = 0.0, dd_gain_none: float = 0.0,
-            pair: tuple[str, str] | None = None) -> Verdict:  # fmt: skip
+            pair: tuple[str, str] | None = None, *, block_sse: dict | None = None,
+            dd_z: float | None = None, dd_z_none: float | None = None,
+            excess_left: float | None = None) -> Verdict:  # fmt: skip
     """Probabilities of none / each effect / outside the library, the answer, and the doubt.
     ``excess_cut``, ``dd_gain``: of the best library term; ``excess``, ``dd_gain_none``: of the
     model alone (share of its held-out mean square above the noise; the data-driven gain on it).
     ``pair``: two effects that ``select`` kept together (the pair paid over the first alone): when
-    they are the two contenders, the answer is both, not an ambiguity."""
+    they are the two contenders, the answer is both, not an ambiguity. The paired evidence
+    (optional; without it every split that leaves the answer under ``CONFIDENT`` is ambiguous
+    and outside always competes): ``block_sse`` hypothesis -> held-out squared error per block;
+    ``dd_z``, ``dd_z_none``: paired z of the data-driven gain on the best term and on none;
+    ``excess_left``: the kept terms' held-out mean square above the noise, as a share (reported;
+    it does not let outside in by itself)."""
+    # on top of a named term only the correction's paired test lets outside in: the excess a term
+    # leaves is also what an in-library effect in another form, or a second one, leaves
+    support = outside_supported(dd_gain, dd_z, None)
+    support_none = outside_supported(dd_gain_none, dd_z_none, excess)
     q = named_physics_probability(excess_cut, dd_gain, cal)
     q0 = none_probability(excess, dd_gain_none, cal)
     p_none = raw.get("none", 0.0)
@@ -196,11 +283,27 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     probs[OUTSIDE] = sum(effects.values()) * (1.0 - q) + p_none * (1.0 - q0)
     total = sum(probs.values()) or 1.0
     probs = {h: p / total for h, p in probs.items()}
-    ranked = sorted(probs.items(), key=lambda kv: -kv[1])
+    # 'outside the library' is an answer, or a contender, only where the data support it on top
+    # of the library's winner (the best effect, or none when the model alone predicts best);
+    # elsewhere its share is the calibrated doubt about the name, reported as 'unresolved'
+    library_top = max(raw, key=raw.get) if raw else "none"
+    outside_ok = support_none if library_top == "none" else support
+    if not outside_ok:
+        probs[UNRESOLVED] = probs.pop(OUTSIDE)
+    ranked = sorted(((h, p) for h, p in probs.items() if h != UNRESOLVED), key=lambda kv: -kv[1])
     answer, p1 = ranked[0]
     second, p2 = ranked[1] if len(ranked) > 1 else ("", 0.0)
     confident = p1 >= CONFIDENT
-    ambiguous = (not confident) and p1 + p2 >= PAIR
+    z = None
+    if confident:
+        ambiguous = False
+    elif block_sse is None:
+        ambiguous = p1 + p2 >= PAIR
+    elif OUTSIDE in (answer, second):
+        ambiguous = p2 * ODDS_SEPARATE > p1
+    else:
+        z = separation(block_sse, answer, second)
+        ambiguous = z is None or abs(z) < Z_SEPARATE
     both = bool(pair and {answer, second} == set(pair) and not confident)
     if both:
         p1 = p1 + p2
@@ -209,5 +312,6 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
         probabilities=probs, raw=raw, answer=answer, probability=p1, confident=confident, both=both,
         ambiguous=ambiguous, contenders=[answer, second] if (ambiguous or both) else [answer],
         physics_probability=q, excess_cut=excess_cut, dd_gain=dd_gain, n_blocks=n_blocks,
-        excess=excess, dd_gain_none=dd_gain_none,
+        excess=excess, dd_gain_none=dd_gain_none, separation_z=z, outside_supported=outside_ok,
+        tentative=not confident and not ambiguous,
     )  # fmt: skip
