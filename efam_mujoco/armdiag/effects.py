@@ -67,6 +67,7 @@ class ArmEffect:
                 base,
                 damping_axial=base.damping_axial * v["axial_factor"],
                 damping_bend=base.damping_bend * v["bend_factor"],
+                medium_viscosity_Pa_s=v["medium_Pa_s"],
             )
         if self.name == "pressure_lag":
             lag = np.array(base.lag_s)
@@ -106,9 +107,11 @@ LIBRARY: tuple[ArmEffect, ...] = (
         switch_on="MJCF: body 'base' quaternion",
     ),
     ArmEffect(
-        "damping", "more (or less) damping than the model has, axial and bending separately",
-        "c_slide *= a, c_hinge *= b", (Param("axial_factor", 0.1, 40.0, True, start=1.0), Param("bend_factor", 0.1, 40.0, True, start=1.0, grid=(0.3, 3.0, 10.0))),
-        switch_on="MJCF: joint damping",
+        "damping", "more (or less) damping than the model has: axial and bending separately, and a viscous medium",
+        "c_slide *= a, c_hinge *= b; fluid viscosity mu (MuJoCo inertia-box drag on every body)",
+        (Param("axial_factor", 0.1, 40.0, True, start=1.0), Param("bend_factor", 0.1, 40.0, True, start=1.0, grid=(0.3, 3.0, 10.0)),
+         Param("medium_Pa_s", 1e-3, 100.0, True, start=1e-3, grid=(3.0,))),
+        switch_on="MJCF: joint damping, option viscosity",
     ),
     ArmEffect(
         "pressure_lag", "a slower valve or tube on one muscle (or on the supply of all)",

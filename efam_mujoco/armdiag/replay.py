@@ -54,7 +54,10 @@ FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 FRICTION_SOLREF_STEPS = 2.0
 #: a replayed tip farther than this from the origin (m) has diverged; diverged variants get
 #: FAILED_TIP_M everywhere, so that they fit nothing
-UNSTABLE_M, FAILED_TIP_M = 100.0, 1e3  # solref time constant, in time steps (the stiffest MuJoCo advises)
+UNSTABLE_M, FAILED_TIP_M = 100.0, 1e3
+#: rotational inertia of the compliant mount's hinges (kg m^2, a mount plate): less lets the
+#: stiffer mounts of the search range outrun the time step
+MOUNT_ARMATURE = 1e-3  # solref time constant, in time steps (the stiffest MuJoCo advises)
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,7 @@ class Knobs:
     lag_s: tuple = ()  # per muscle pressure time constant (filterexact)
     damping_axial: float = 1.0  # multiplier on the slide joints' damping
     damping_bend: float = 1.0  # multiplier on the hinge joints' damping
+    medium_viscosity_Pa_s: float = 0.0  # MuJoCo's fluid model (inertia boxes) in a viscous medium
     payload_kg: float = 0.0
     tilt_rad: tuple = (0.0, 0.0)  # base turned about the world x, then y axis
     mount_stiffness_N_m_per_rad: float = 0.0  # 0: rigid mount
@@ -163,6 +167,8 @@ class Replayer:
                 j.damping = self._damping0[j.name] * k.damping_axial
             elif j.type == mujoco.mjtJoint.mjJNT_HINGE:
                 j.damping = self._damping0[j.name] * k.damping_bend
+        if k.medium_viscosity_Pa_s > 0:
+            spec.option.viscosity = k.medium_viscosity_Pa_s
         for act, tau in zip(spec.actuators, k.lag_s):
             act.dynprm[0] = tau
         if any(k.tilt_rad):
@@ -185,7 +191,7 @@ class Replayer:
             for name, axis in (("mount_x", [1, 0, 0]), ("mount_y", [0, 1, 0])):
                 base.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
                                stiffness=k.mount_stiffness_N_m_per_rad,
-                               damping=k.mount_damping_N_m_s_per_rad, armature=1e-4)  # fmt: skip
+                               damping=k.mount_damping_N_m_s_per_rad, armature=MOUNT_ARMATURE)  # fmt: skip
             base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.005, 0, 0], contype=0, conaffinity=0,
                           group=2, mass=1e-3)  # fmt: skip
         if k.friction_N > 0 and self.segmented:

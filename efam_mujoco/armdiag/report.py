@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_json_atomic, write_text_atomic
+from ..files import save_figure, write_json_atomic, write_text_atomic
 from .diagnosis import ArmDiagnosis, diagnose_arm
 from .recording import read_csv
 from .replay import Replayer
@@ -114,7 +114,7 @@ def figures(d: ArmDiagnosis, directory, prefix: str = "armdiag") -> list[Path]:
     axes[1].set_xlabel("time (s)")
     fig.tight_layout()
     path = directory / f"{prefix}_tip.png"
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return [path]
 
