@@ -51,13 +51,13 @@ FRICTION_SLIP_KPA = 6.0
 #: impedance of the tendon form of muscle friction: MuJoCo's default soft frictionloss lets the light
 #: links creep through it within a few steps (no visible friction), so it is made near-hard
 FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-FRICTION_SOLREF_STEPS = 2.0
+FRICTION_SOLREF_STEPS = 2.0  # solref time constant, in time steps (the stiffest MuJoCo advises)
 #: a replayed tip farther than this from the origin (m) has diverged; diverged variants get
 #: FAILED_TIP_M everywhere, so that they fit nothing
 UNSTABLE_M, FAILED_TIP_M = 100.0, 1e3
 #: rotational inertia of the compliant mount's hinges (kg m^2, a mount plate): less lets the
 #: stiffer mounts of the search range outrun the time step
-MOUNT_ARMATURE = 1e-3  # solref time constant, in time steps (the stiffest MuJoCo advises)
+MOUNT_ARMATURE = 1e-3
 
 
 @dataclass(frozen=True)

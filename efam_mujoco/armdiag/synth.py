@@ -4,8 +4,8 @@ The concealed effects are written here independently of the library (:mod:`efam_
 :mod:`.replay`) and in other functional forms: a payload with an off-axis centre of mass added to
 the tip body's inertia; a tilt as a rotated gravity and a rotated marker frame; hinge-only damping,
 damping along the muscles (tendon damping) or a viscous medium; a second-order lag with a transport
-delay; a leak through an orifice (flow ~ sqrt(P), so the pressure loss grows with the square root
-of the pressure) behind a valve with its own time constant; a Dahl friction force in every muscle
+delay; a leak through an orifice against the valve's flow (the pressure loss grows with the square root
+of the pressure); a Dahl friction force in every muscle
 (pre-sliding, rate-independent, applied as generalized forces through the muscles' own length
 Jacobians, each muscle its own level); a one-way pneumatic coupling through a shared supply line
 (the line follows one muscle's command with its own time constant and leaks into a neighbour's
@@ -192,14 +192,11 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
             lp_state[1] = lp_state[1] + a * (lp_state[0] - lp_state[1])
             p[idx] = lp_state[1][idx]
         elif truth.name == "weak_muscle":
-            # orifice leak behind a valve: steady state P = cmd - a sqrt(P), reached with tau_valve
+            # orifice leak (flow ~ sqrt(P)) against the valve's flow (~ cmd - P): P = cmd - a sqrt(P);
+            # the muscle's own pressure dynamics (the model's) follow
             i = muscles.index(truth.muscle)
             a = tp["leak_sqrt_Pa"]
-            steady = ((-a + math.sqrt(a * a + 4 * command[i])) / 2) ** 2
-            if lp_state is None:
-                lp_state = steady
-            lp_state += (1 - math.exp(-dt / tp["tau_valve_s"])) * (steady - lp_state)
-            p[i] = lp_state
+            p[i] = ((-a + math.sqrt(a * a + 4 * command[i])) / 2) ** 2
         elif truth.name == "cross_talk":
             # a supply line shared with muscle `from` follows its command (own time constant) and
             # leaks into muscle `to`'s valve through an orifice (flow ~ sqrt of the pressure difference)
@@ -281,8 +278,7 @@ def random_truth(name: str, muscles: list[str], rng: np.random.Generator, max_Pa
         half = 0.5 * max_Pa
         return Truth(
             name,
-            {"leak_sqrt_Pa": loss * half / math.sqrt((1 - loss) * half), "loss_at_half_range": loss,
-             "tau_valve_s": float(rng.uniform(0.02, 0.1))},
+            {"leak_sqrt_Pa": loss * half / math.sqrt((1 - loss) * half), "loss_at_half_range": loss},
             str(rng.choice(muscles)),
         )  # fmt: skip
     if name == "muscle_friction":
