@@ -136,7 +136,7 @@ LIBRARY: tuple[ArmEffect, ...] = (
         "cross_talk", "the pressure of one muscle leaks into a neighbour's supply (named: the receiving muscle, "
         "from the source muscle)",
         "P_i = P_cmd,i + c (P_cmd,j - P_cmd,i) (i receives from j, same section)",
-        (Param("coupling", -0.2, 0.6, start=0.0, grid=(0.1, 0.3)),), per_muscle=True, per_pair=True,
+        (Param("coupling", -0.2, 0.6, start=0.0, grid=(0.25,)),), per_muscle=True, per_pair=True,
         switch_on="command map (custom numeric efam_ctrl_coupling: i, j, c)",
     ),
     ArmEffect(
