@@ -205,7 +205,8 @@ def test_written_model_keeps_every_term(tmp_path, spec):
     k = with_values(
         replayer.nominal, payload_kg=0.08, tilt_rad=(0.05, -0.03), mount_stiffness_N_m_per_rad=80.0,
         mount_damping_N_m_s_per_rad=0.4, friction_N=3.0, cross_talk=0.2, gain=[1.0, 0.8, 1.0],
-        offset_Pa=[0.0, 5e3, 0.0], damping_bend=2.0, lag_s=[0.05, 0.2, 0.05],
+        offset_Pa=[0.0, 5e3, 0.0], damping_bend=2.0, lag_s=[0.05, 0.2, 0.05], coupling=((1, 2, 0.3),),
+        medium_viscosity_Pa_s=0.5,
     )  # fmt: skip
     path = tmp_path / "all.xml"
     written = replayer.model_with(k)
@@ -272,3 +273,28 @@ def test_muscle_friction_on_the_muscle_tendons(spec):
     config = dict(pcc.edited_spec(with_values(pcc.nominal, friction_N=f0)).plugins[0].config)
     assert float(config["friction.f0_N"]) == pytest.approx(f0)
     assert np.isfinite(pcc.tips([with_values(pcc.nominal, friction_N=f0)])).all()
+
+
+def test_one_way_cross_talk_command_map(spec):
+    """Muscle 0 receives from muscle 2: P_0 = P_0 + c (P_2 - P_0); the others are untouched."""
+    t = np.arange(0, 1.0, 0.02)
+    cmd = np.column_stack([100e3 + 0 * t, 200e3 + 50e3 * np.sin(t), 300e3 + 0 * t])
+    replayer = Replayer(spec, t, cmd)
+    k = with_values(replayer.nominal, coupling=((0, 2, 0.25),))
+    ctrl = replayer.controls(k, cmd)
+    np.testing.assert_allclose(ctrl[:, 0], cmd[:, 0] + 0.25 * (cmd[:, 2] - cmd[:, 0]))
+    np.testing.assert_allclose(ctrl[:, 1:], cmd[:, 1:])
+
+
+def test_unstable_variant_fails_quietly(spec, capfd):
+    """A variant that diverges (the light links with almost no joint damping at a 4 ms step) is given a
+    tip far away, counted, and MuJoCo's warning is not printed."""
+    t = np.arange(0, 1.0, 0.02)
+    cmd = np.tile([150e3, 250e3, 350e3], (len(t), 1))
+    replayer = Replayer(spec, t, cmd)
+    bad = with_values(replayer.nominal, damping_axial=1e-6, damping_bend=1e-6, lag_s=[1e-4] * 3)
+    tips = replayer.tips([replayer.nominal, bad])
+    assert np.all(np.abs(tips[0]) < 1.0)
+    assert replayer.unstable == 1 and np.all(tips[1] == 1e3)
+    out = capfd.readouterr()
+    assert "unstable" not in out.out + out.err
