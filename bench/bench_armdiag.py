@@ -228,12 +228,18 @@ def confusion_figure(matrix, path):
 def plan_cases(seed: int, reps_1: int, reps_2: int) -> list[tuple]:
     """(arm, truth, protocol, seed) for every case: each truth ``reps_1`` times on the 1-section
     arm and ``reps_2`` times on the 2-section arm, protocols cycled."""
-    plan = []
+    per_arm = []
     for arm_name, reps in (("1x3", reps_1), ("2x3", reps_2)):
+        cases = []
         for rep in range(reps):
             for i, truth in enumerate(TRUTHS):
                 case_seed = seed + 1000 * (arm_name == "2x3") + 20 * rep + i
-                plan.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], case_seed))
+                cases.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], case_seed))
+        per_arm.append(cases)
+    # both arms' cases interleaved, every truth early: a run cut short keeps a balanced sample
+    plan = []
+    for k in range(max(len(c) for c in per_arm)):
+        plan += [c[k] for c in per_arm if k < len(c)]
     return plan
 
 
@@ -270,6 +276,9 @@ def main(argv=None) -> int:
     parser.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
     parser.add_argument("--no-timing", action="store_true", help="skip the 3-section timing case")
     parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument(
+        "--timing-json", type=Path, help="take the timing case from this JSON (measured by an earlier run)"
+    )
     args = parser.parse_args(argv)
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
     started = time.perf_counter()
@@ -279,7 +288,12 @@ def main(argv=None) -> int:
         raise SystemExit("calibration and evaluation seeds overlap")
     doc = {"seed": args.seed, "cal_seed": args.cal_seed}
     # the timing case first: short, and its figure stands even if a long run is cut off
-    timing = None if args.no_timing else timing_case(specs["3x3"], args.seed + 5000)
+    if args.timing_json:
+        import json
+
+        timing = json.loads(args.timing_json.read_text()) | {"measured_by": "an earlier run of this script"}
+    else:
+        timing = None if args.no_timing else timing_case(specs["3x3"], args.seed + 5000)
     doc["timing"] = timing
     print("timing:", timing, flush=True)
     calibration = None
