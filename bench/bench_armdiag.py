@@ -11,18 +11,21 @@ muscles upright (4 disks) and 2 sections hanging (2 disks per section),
 both at a 4 ms timestep; the timing case is a 3-section hanging arm (2 disks per section), 60 s at
 100 Hz, on one thread, CPU time of this process.
 
-Scored: top-1 among confident answers, false alarms on clean recordings, ambiguous share, the
-right muscle for weak_muscle, held-out tip RMS (model as built -> re-fitted -> identified), the
+Calibration first: the probability temperature T and P(none) at the noise floor are fitted on
+calibration cases whose seeds (``--cal-seed``) are disjoint from the evaluation's (``--seed``),
+then the evaluation cases are diagnosed with them. The timing case runs before both.
+
+Scored on the evaluation cases: top-1 among confident answers, false alarms on clean recordings,
+ambiguous share (and that every ambiguous answer carries a next experiment), the right muscle for
+weak_muscle, the reliability table and expected calibration error of the top-1 probability,
+held-out tip RMS (model as built -> re-fitted -> identified, against the marker noise), the
 confusion matrix, and that the written MJCF (identified terms switched on) reproduces the
 held-out blocks.
 
-Usage: python bench/bench_armdiag.py [--reps 3] [--reps-2 1] [--seed 31000] [--duration 20]
-Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_tip.png.
-On a shared machine, run shards in parallel and merge them::
-
-    python bench/bench_armdiag.py --shard 0/3 --no-timing --out out/a0.json   # and 1/3, 2/3
-    python bench/bench_armdiag.py --timing-only --out out/at.json
-    python bench/bench_armdiag.py --merge out/a0.json out/a1.json out/a2.json out/at.json
+Usage: python bench/bench_armdiag.py [--reps 5] [--reps-2 3] [--seed 91000] [--cal-reps 1]
+[--cal-reps-2 1] [--cal-seed 71000] [--duration 20] [--no-timing] [--out PATH]
+Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_reliability.png,
+armdiag_tip.png; the rows are saved after every case (a cut-off run keeps what it did).
 """
 
 from __future__ import annotations
@@ -42,12 +45,12 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from efam_mujoco import arm  # noqa: E402
-from efam_mujoco.armdiag import diagnose_arm  # noqa: E402
+from efam_mujoco.armdiag import diagnose_arm, diagnosis  # noqa: E402
 from efam_mujoco.armdiag.diagnosis import folds  # noqa: E402
 from efam_mujoco.armdiag.replay import Replayer  # noqa: E402
 from efam_mujoco.armdiag.report import figures, write_model  # noqa: E402
 from efam_mujoco.armdiag.synth import PROTOCOLS, TRUTHS, make_recording, random_truth  # noqa: E402
-from efam_mujoco.files import write_json_atomic  # noqa: E402
+from efam_mujoco.files import save_figure, write_json_atomic  # noqa: E402
 from efam_mujoco.progress import progress  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -92,7 +95,10 @@ def run_case(arm_name, spec, truth_name, protocol, seed, duration):
         "heldout_rms_nominal_m": d.heldout_rms_nominal_m, "heldout_rms_refit_m": d.heldout_rms_before_m,
         "heldout_rms_after_m": d.heldout_rms_after_m, "seconds_cpu": d.seconds,
         "next_experiment": d.next_experiment["recommended"] if d.next_experiment else None,
-        "rollouts": d.decisions["rollouts"],
+        "rollouts": d.decisions["rollouts"], "unstable_variants": d.decisions["unstable_variants"],
+        "source_muscle": d.effects[0]["source_muscle"] if d.effects else None,
+        "scores": {c["name"]: c["score"] for c in d.candidates}, "at_floor": "noise floor" in v["reason"],
+        "paired": v["paired"],
     }  # fmt: skip
     row["heldout_rms_mjcf_m"] = reproduce(spec, d, rec)
     return row, d
@@ -125,9 +131,59 @@ def score(rows) -> dict:
         "median_heldout_reduction_vs_refit": float(np.median(red_refit)) if effect else None,
         "median_mjcf_over_diagnosis_heldout": float(np.median([r["heldout_rms_mjcf_m"] / r["heldout_rms_after_m"] for r in rows])),
         "median_heldout_after_over_noise": float(np.median([r["heldout_rms_after_m"] / r["noise_true_m"] for r in effect])) if effect else None,
+        "ambiguous_with_next_experiment": float(np.mean([r["next_experiment"] is not None for r in rows if r["ambiguous"]])) if any(r["ambiguous"] for r in rows) else None,
+        "heldout_rms_m_median": {
+            "as_built": float(np.median([r["heldout_rms_nominal_m"] for r in effect])) if effect else None,
+            "refit": float(np.median([r["heldout_rms_refit_m"] for r in effect])) if effect else None,
+            "identified": float(np.median([r["heldout_rms_after_m"] for r in effect])) if effect else None,
+            "marker_noise_true": float(np.median([r["noise_true_m"] for r in effect])) if effect else None,
+        },
+        "reliability": reliability(rows),
         "per_truth": per_truth,
         "confusion": matrix,
     }  # fmt: skip
+
+
+BINS = (0.0, 0.5, 0.7, 0.8, 0.9, 0.95, 0.99, 1.0)
+
+
+def reliability(rows) -> dict:
+    """Top-1 probability against how often the top-1 answer is right, in bins; the expected
+    calibration error ECE = sum_b n_b / N |accuracy_b - mean probability_b|."""
+    p = np.array([r["probability"] for r in rows])
+    right = np.array([r["answer"] == r["truth"] for r in rows], float)
+    table, ece = [], 0.0
+    for lo, hi in zip(BINS[:-1], BINS[1:]):
+        inside = (p >= lo) & ((p < hi) if hi < 1 else (p <= hi))
+        if inside.any():
+            table.append({"from": lo, "to": hi, "n": int(inside.sum()), "mean_probability": float(p[inside].mean()),
+                          "accuracy": float(right[inside].mean())})  # fmt: skip
+            ece += inside.sum() / len(p) * abs(right[inside].mean() - p[inside].mean())
+    return {"bins": table, "ece": float(ece), "n": len(rows)}
+
+
+def fit_calibration(rows) -> dict:
+    """The probability temperature T (max likelihood of the concealed truth under p ~ exp(score/T))
+    and P(none) at the noise floor, from calibration rows (seeds disjoint from the evaluation's)."""
+    scored = [r for r in rows if not r["at_floor"]]
+    grid = np.exp(np.linspace(np.log(0.2), np.log(50.0), 121))
+
+    def nll(T):
+        total = 0.0
+        for r in scored:
+            s = np.array(list(r["scores"].values()))
+            names = list(r["scores"])
+            z = (s - s.max()) / T
+            logp = z - np.log(np.sum(np.exp(z)))
+            total -= logp[names.index(r["truth"])]
+        return total
+
+    losses = [nll(T) for T in grid]
+    T = float(grid[int(np.argmin(losses))])
+    floor = [r for r in rows if r["at_floor"]]
+    p_none = (sum(r["truth"] == "none" for r in floor) + 1) / (len(floor) + 2)
+    return {"temperature": T, "nll": float(min(losses)), "nll_at_T1": float(nll(1.0)), "rows_scored": len(scored),
+            "p_none_at_floor": float(p_none), "rows_at_floor": len(floor)}  # fmt: skip
 
 
 def timing_case(spec, seed) -> dict:
@@ -138,7 +194,7 @@ def timing_case(spec, seed) -> dict:
     wall = time.perf_counter()
     d = diagnose_arm(spec, rec, threads=1)
     return {
-        "arm": "3x3 (2 disks per section, 4 ms)", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
+        "arm": "3 sections x 3 FAM1 muscles, hanging, D = 2 disks per section, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
         "seconds_cpu_one_thread": d.seconds, "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
         "truth": truth.name, "truth_muscle": truth.muscle, "answer": d.verdict["answer"],
         "muscle": d.effects[0]["muscle"] if d.effects else None, "heldout_rms_after_m": d.heldout_rms_after_m,
@@ -165,69 +221,140 @@ def confusion_figure(matrix, path):
     ax.set_ylabel("concealed in the recording")
     ax.set_title("Arm diagnosis, blind benchmark")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
+
+
+def plan_cases(seed: int, reps_1: int, reps_2: int) -> list[tuple]:
+    """(arm, truth, protocol, seed) for every case: each truth ``reps_1`` times on the 1-section
+    arm and ``reps_2`` times on the 2-section arm, protocols cycled."""
+    per_arm = []
+    for arm_name, reps in (("1x3", reps_1), ("2x3", reps_2)):
+        cases = []
+        for rep in range(reps):
+            for i, truth in enumerate(TRUTHS):
+                case_seed = seed + 1000 * (arm_name == "2x3") + 20 * rep + i
+                cases.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], case_seed))
+        per_arm.append(cases)
+    # both arms' cases interleaved, every truth early: a run cut short keeps a balanced sample
+    plan = []
+    for k in range(max(len(c) for c in per_arm)):
+        plan += [c[k] for c in per_arm if k < len(c)]
+    return plan
+
+
+def run_plan(plan, specs, duration, label, out, partial_doc):
+    """Run the cases, printing one line each and saving the rows after each case."""
+    rows, example = [], None
+    for arm_name, truth, protocol, seed in progress(plan, label):
+        row, d = run_case(arm_name, specs[arm_name], truth, protocol, seed, duration)
+        rows.append(row)
+        if example is None and truth == "weak_muscle":
+            example = d
+        write_json_atomic(out, {**partial_doc, label: rows, "partial": True})  # survives an interruption
+        print(
+            f"{label} {arm_name} {truth:16s} {protocol:11s} {row['rate_Hz']:5.0f} Hz -> {row['answer']:16s} "
+            f"p {row['probability']:.2f}{' AMB' if row['ambiguous'] else ''} muscle {row['muscle']} (true {row['truth_muscle']}); "
+            f"held-out {row['heldout_rms_nominal_m'] * 1e3:.2f} / {row['heldout_rms_refit_m'] * 1e3:.2f} / "
+            f"{row['heldout_rms_after_m'] * 1e3:.2f} mm (MJCF {row['heldout_rms_mjcf_m'] * 1e3:.2f}, noise "
+            f"{row['noise_true_m'] * 1e3:.2f}), {row['seconds_cpu']:.1f} s",
+            flush=True,
+        )  # fmt: skip
+    return rows, example
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--reps", type=int, default=3, help="cases per truth on the 1-section arm")
-    parser.add_argument("--reps-2", type=int, default=1, help="cases per truth on the 2-section arm")
-    parser.add_argument("--seed", type=int, default=31000)
+    parser.add_argument("--reps", type=int, default=5, help="evaluation cases per truth, 1-section arm")
+    parser.add_argument("--reps-2", type=int, default=3, help="evaluation cases per truth, 2-section arm")
+    parser.add_argument("--seed", type=int, default=91000, help="evaluation seeds start here")
+    parser.add_argument("--cal-reps", type=int, default=1, help="calibration cases per truth, 1-section arm")
+    parser.add_argument(
+        "--cal-reps-2", type=int, default=1, help="calibration cases per truth, 2-section arm"
+    )
+    parser.add_argument("--cal-seed", type=int, default=71000, help="calibration seeds start here (disjoint)")
     parser.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
     parser.add_argument("--no-timing", action="store_true", help="skip the 3-section timing case")
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument(
-        "--shard", default="0/1", help="i/n: run every n-th case from the i-th (parallel runs)"
-    )
-    parser.add_argument("--timing-only", action="store_true", help="run only the 3-section timing case")
-    parser.add_argument(
-        "--merge", type=Path, nargs="+", help="combine shard outputs into --out (and the figures)"
+        "--timing-json", type=Path, help="take the timing case from this JSON (measured by an earlier run)"
     )
     args = parser.parse_args(argv)
-    if args.merge:
-        return merge(args)
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
-    plan = []
-    for arm_name, reps in (("1x3", args.reps), ("2x3", args.reps_2)):
-        for rep in range(reps):
-            for i, truth in enumerate(TRUTHS):
-                seed = args.seed + 1000 * (arm_name == "2x3") + 20 * rep + i
-                plan.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], seed))
-    shard, shards = (int(x) for x in args.shard.split("/"))
-    plan = [] if args.timing_only else plan[shard::shards]
-    rows = []
-    example = None
     started = time.perf_counter()
-    for arm_name, truth, protocol, seed in progress(plan, "armdiag bench"):
-        row, d = run_case(arm_name, specs[arm_name], truth, protocol, seed, args.duration)
-        rows.append(row)
-        if example is None and truth == "weak_muscle":
-            example = d
-        write_json_atomic(
-            args.out, {"partial": True, "rows": rows, "seed": args.seed}
-        )  # survives an interrupted run
-        print(
-            f"{arm_name} {truth:16s} {protocol:11s} {row['rate_Hz']:5.0f} Hz -> {row['answer']:16s} "
-            f"p {row['probability']:.2f}{' AMB' if row['ambiguous'] else ''} muscle {row['muscle']} (true {row['truth_muscle']}); "
-            f"held-out {row['heldout_rms_nominal_m'] * 1e3:.2f} / {row['heldout_rms_refit_m'] * 1e3:.2f} / "
-            f"{row['heldout_rms_after_m'] * 1e3:.2f} mm (MJCF {row['heldout_rms_mjcf_m'] * 1e3:.2f}), {row['seconds_cpu']:.1f} s",
-            flush=True,
-        )  # fmt: skip
+    evaluation = plan_cases(args.seed, args.reps, args.reps_2)
+    calibration_plan = plan_cases(args.cal_seed, args.cal_reps, args.cal_reps_2)
+    if {c[3] for c in evaluation} & {c[3] for c in calibration_plan}:
+        raise SystemExit("calibration and evaluation seeds overlap")
+    doc = {"seed": args.seed, "cal_seed": args.cal_seed}
+    # the timing case first: short, and its figure stands even if a long run is cut off
+    if args.timing_json:
+        import json
+
+        timing = json.loads(args.timing_json.read_text()) | {"measured_by": "an earlier run of this script"}
+    else:
+        timing = None if args.no_timing else timing_case(specs["3x3"], args.seed + 5000)
+    doc["timing"] = timing
+    print("timing:", timing, flush=True)
+    calibration = None
+    if calibration_plan:
+        cal_rows, _ = run_plan(calibration_plan, specs, args.duration, "calibration", args.out, doc)
+        calibration = fit_calibration(cal_rows) | {
+            "cases": len(cal_rows),
+            "reliability_before": reliability(cal_rows),
+        }
+        diagnosis.PROBABILITY_TEMPERATURE = calibration["temperature"]
+        diagnosis.P_NONE_AT_FLOOR = calibration["p_none_at_floor"]
+        doc |= {"calibration": calibration, "calibration_rows": cal_rows}
+        print("calibration:", {k: v for k, v in calibration.items() if k != "reliability_before"}, flush=True)
+    rows, example = run_plan(evaluation, specs, args.duration, "evaluation", args.out, doc)
     summary = score(rows) if rows else None
-    timing = None if args.no_timing else timing_case(specs["3x3"], args.seed + 5000)
     doc = {
-        "summary": summary, "timing": timing, "rows": rows, "seed": args.seed,
+        "summary": summary, "timing": timing, "calibration": calibration,
+        "probability_temperature_used": diagnosis.PROBABILITY_TEMPERATURE,
+        "p_none_at_floor_used": diagnosis.P_NONE_AT_FLOOR, "rows": rows,
+        "calibration_rows": doc.get("calibration_rows", []), "seed": args.seed, "cal_seed": args.cal_seed,
         "duration_s_per_recording": args.duration, "bench_wall_s": time.perf_counter() - started,
         "machine": {"python": platform.python_version(), "mujoco": mujoco.__version__, "cpu_count": os.cpu_count()},
     }  # fmt: skip
     write_json_atomic(args.out, doc)
     if args.out == RESULTS and summary:
         confusion_figure(summary["confusion"], FIGURES / "armdiag_confusion.png")
+        reliability_figure(summary["reliability"], FIGURES / "armdiag_reliability.png")
         if example is not None:
             figures(example, FIGURES)
     _print(summary, timing)
     return 0
+
+
+def reliability_figure(rel, path):
+    """Reliability diagram: mean top-1 probability against accuracy per bin."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4.5, 4.2))
+    ax.plot([0, 1], [0, 1], "k:", lw=0.8)
+    for b in rel["bins"]:
+        ax.plot(
+            b["mean_probability"], b["accuracy"], "o", ms=3 + 1.5 * np.sqrt(b["n"]), color="C0", alpha=0.7
+        )
+        ax.annotate(
+            str(b["n"]),
+            (b["mean_probability"], b["accuracy"]),
+            fontsize=7,
+            xytext=(4, -10),
+            textcoords="offset points",
+        )
+    ax.set_xlabel("top-1 probability (bin mean)")
+    ax.set_ylabel("top-1 right (share)")
+    ax.set_title(f"Arm diagnosis reliability, ECE {rel['ece']:.3f} (n = {rel['n']})", fontsize=9)
+    ax.set_xlim(0, 1.02)
+    ax.set_ylim(0, 1.02)
+    fig.tight_layout()
+    save_figure(fig, path)
+    plt.close(fig)
 
 
 def _print(summary, timing):
@@ -236,29 +363,6 @@ def _print(summary, timing):
         print("per truth:", {k: f"{v['right']}/{v['n']}" for k, v in summary["per_truth"].items()})
     if timing:
         print("timing:", timing)
-
-
-def merge(args) -> int:
-    """Combine the shards' rows (and the timing) into one result, its confusion matrix and figures."""
-    import json
-
-    docs = [json.loads(Path(p).read_text()) for p in args.merge]
-    rows = sorted((r for d in docs for r in d["rows"]), key=lambda r: (r["arm"], r["seed"]))
-    timing = next((d["timing"] for d in docs if d.get("timing")), None)
-    summary = score(rows)
-    doc = {
-        "summary": summary, "timing": timing, "rows": rows, "seed": docs[0]["seed"],
-        "duration_s_per_recording": docs[0].get("duration_s_per_recording"),
-        "bench_wall_s": max(d.get("bench_wall_s", 0) for d in docs), "shards": len(docs),
-        "machine": {"python": platform.python_version(), "mujoco": mujoco.__version__, "cpu_count": os.cpu_count()},
-    }  # fmt: skip
-    write_json_atomic(args.out, doc)
-    confusion_figure(summary["confusion"], FIGURES / "armdiag_confusion.png")
-    specs = {k: arm.build_spec(v) for k, v in arms().items()}
-    _, example = run_case("1x3", specs["1x3"], "weak_muscle", "steps", docs[0]["seed"] + 5, 20.0)
-    figures(example, FIGURES)
-    _print(summary, timing)
-    return 0
 
 
 if __name__ == "__main__":

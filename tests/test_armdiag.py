@@ -151,7 +151,7 @@ def test_payload_knob_matches_the_builders_payload(spec):
 @pytest.fixture(scope="module")
 def weak_case(spec):
     rng = np.random.default_rng(5)
-    truth = Truth("weak_muscle", {"drop_Pa": 20e3, "loss": 0.25}, "s1m2")
+    truth = Truth("weak_muscle", {"leak_sqrt_Pa": 130.0}, "s1m2")  # an orifice leak, ~25 % at mid-range
     rec = make_recording(spec, truth, "steps", rng, duration_s=12.0, rate_Hz=60.0, noise_m=5e-4)
     return rec, diagnose_arm(spec, rec, threads=1)
 
@@ -205,7 +205,8 @@ def test_written_model_keeps_every_term(tmp_path, spec):
     k = with_values(
         replayer.nominal, payload_kg=0.08, tilt_rad=(0.05, -0.03), mount_stiffness_N_m_per_rad=80.0,
         mount_damping_N_m_s_per_rad=0.4, friction_N=3.0, cross_talk=0.2, gain=[1.0, 0.8, 1.0],
-        offset_Pa=[0.0, 5e3, 0.0], damping_bend=2.0, lag_s=[0.05, 0.2, 0.05],
+        offset_Pa=[0.0, 5e3, 0.0], damping_bend=2.0, lag_s=[0.05, 0.2, 0.05], coupling=((1, 2, 0.3),),
+        medium_viscosity_Pa_s=0.5,
     )  # fmt: skip
     path = tmp_path / "all.xml"
     written = replayer.model_with(k)
@@ -215,36 +216,85 @@ def test_written_model_keeps_every_term(tmp_path, spec):
     np.testing.assert_allclose(again.tips([again.nominal])[0], replayer.tips([k])[0], atol=1e-6)
 
 
-def test_muscle_friction_lifted_to_the_joints(spec):
-    """Segmented muscles refuse plugin effect terms, so muscle friction f0 becomes joint frictionloss:
-    n f0 on each extension slide, f0 sum|y_i| on bend_x and f0 sum|x_i| on bend_y (muscle i at
-    (x_i, y_i) = r (cos a_i, sin a_i)); an unsegmented (pcc) arm keeps the plugin's friction keys."""
+def test_muscle_friction_on_the_muscle_tendons(spec):
+    """Segmented muscles refuse plugin effect terms, so muscle friction f0 becomes the dry friction
+    of each muscle's whole-length tendon (whose joint coefficients are the muscle's length
+    Jacobian: 1 per extension slide, -x_i/2, y_i/2 per bend); friction holds back part of a small
+    step down (the stick-slip band 2 f0); an unsegmented (pcc) arm keeps the plugin's friction keys."""
     t = np.arange(0, 3.0, 0.02)
     cmd = np.tile([250e3, 250e3, 250e3], (len(t), 1))
-    cmd[len(t) // 2 :] += 15e3  # a small step: friction holds part of it
     replayer = Replayer(spec, t, cmd)
     f0 = 4.0
     edited = replayer.edited_spec(with_values(replayer.nominal, friction_N=f0)).compile()
     section = small_arm().sections[0]
     x, y = section.radius_m * np.cos(section.angles_rad), section.radius_m * np.sin(section.angles_rad)
-    expected = {
-        "ext_a": 3 * f0,
-        "ext_b": 3 * f0,
-        "bend_x": f0 * np.abs(y).sum(),
-        "bend_y": f0 * np.abs(x).sum(),
-    }
-    for j in range(edited.njnt):
-        name = edited.joint(j).name
-        assert edited.dof_frictionloss[edited.jnt_dofadr[j]] == pytest.approx(
-            expected[name.split("_", 1)[1]], rel=1e-6
-        )
+    for i, name in enumerate(MUSCLES):
+        t_id = edited.tendon(name).id
+        assert edited.tendon_frictionloss[t_id] == pytest.approx(f0)
+        coefficients = {}
+        first = edited.tendon_adr[t_id]
+        for w in range(first, first + edited.tendon_num[t_id]):
+            joint = edited.joint(edited.wrap_objid[w]).name.split("_", 1)[1]
+            coefficients.setdefault(joint, []).append(edited.wrap_prm[w])
+        assert sorted(coefficients) == ["bend_x", "bend_y", "ext_a", "ext_b"]
+        # two segments (a, b) per link each take half the link's bend at the muscle's offset
+        assert coefficients["ext_a"] == pytest.approx([1.0] * DISKS)
+        assert coefficients["bend_x"] == pytest.approx([y[i]] * DISKS)
+        assert coefficients["bend_y"] == pytest.approx([-x[i]] * DISKS)
+    assert not np.any(edited.dof_frictionloss)
     for p in replayer.edited_spec(with_values(replayer.nominal, friction_N=f0)).plugins:
         assert not any(key.startswith("friction.") for key in dict(p.config))
-    free, held = replayer.tips([replayer.nominal, with_values(replayer.nominal, friction_N=f0)])
-    step_free, step_held = free[-1, 2] - free[len(t) // 2 - 1, 2], held[-1, 2] - held[len(t) // 2 - 1, 2]
-    assert step_free > 1e-4 and step_held < 0.8 * step_free
+    # quasi-static stick-slip: the arm extends under the first command and sticks with an
+    # unbalanced muscle force u somewhere in [-f0, f0]; a step down that lowers each muscle's force
+    # by dF moves it by (dF - f0 - u) / k when positive: between (dF - 2 f0) / k and dF / k, and
+    # not at all once 2 f0 far exceeds dF
+    model = replayer.spec.compile()
+    data = mujoco.MjData(model)
+    forces = []
+    for pressure in (250e3, 235e3):
+        data.ctrl[:] = data.act[:] = pressure
+        mujoco.mj_forward(model, data)
+        forces.append(data.actuator_force[0])
+    dF = forces[0] - forces[1]
+    down = np.full_like(cmd, 250e3)
+    down[len(t) // 2 :] = 235e3
+    replayer = Replayer(spec, t, down)
+    small, large = 0.25 * dF, 3.0 * dF  # 2 f0 below dF, and far above it
+    tips = replayer.tips(
+        [replayer.nominal] + [with_values(replayer.nominal, friction_N=f) for f in (small, large)]
+    )
+    step = [tip[-1, 2] - tip[len(t) // 2 - 1, 2] for tip in tips]
+    assert step[0] < -1e-3
+    # (bounds with slack: the muscles' stiffness is not constant over the step, the stop is dynamic)
+    assert 1 - 2 * small / dF - 0.25 < step[1] / step[0] < 0.95
+    assert abs(step[2]) < 0.05 * abs(step[0])
     pcc = Replayer(arm.build_spec(small_arm(mode="pcc")), t, cmd)
     assert not pcc.segmented
     config = dict(pcc.edited_spec(with_values(pcc.nominal, friction_N=f0)).plugins[0].config)
     assert float(config["friction.f0_N"]) == pytest.approx(f0)
     assert np.isfinite(pcc.tips([with_values(pcc.nominal, friction_N=f0)])).all()
+
+
+def test_one_way_cross_talk_command_map(spec):
+    """Muscle 0 receives from muscle 2: P_0 = P_0 + c (P_2 - P_0); the others are untouched."""
+    t = np.arange(0, 1.0, 0.02)
+    cmd = np.column_stack([100e3 + 0 * t, 200e3 + 50e3 * np.sin(t), 300e3 + 0 * t])
+    replayer = Replayer(spec, t, cmd)
+    k = with_values(replayer.nominal, coupling=((0, 2, 0.25),))
+    ctrl = replayer.controls(k, cmd)
+    np.testing.assert_allclose(ctrl[:, 0], cmd[:, 0] + 0.25 * (cmd[:, 2] - cmd[:, 0]))
+    np.testing.assert_allclose(ctrl[:, 1:], cmd[:, 1:])
+
+
+def test_unstable_variant_fails_quietly(spec, capfd):
+    """A variant that diverges (the light links with almost no joint damping at a 4 ms step) is given a
+    tip far away, counted, and MuJoCo's warning is not printed."""
+    t = np.arange(0, 1.0, 0.02)
+    cmd = np.tile([150e3, 250e3, 350e3], (len(t), 1))
+    replayer = Replayer(spec, t, cmd)
+    bad = with_values(replayer.nominal, damping_axial=1e-6, damping_bend=1e-6, lag_s=[1e-4] * 3)
+    tips = replayer.tips([replayer.nominal, bad])
+    assert np.all(np.abs(tips[0]) < 1.0)
+    assert replayer.unstable == 1 and np.all(tips[1] == 1e3)
+    out = capfd.readouterr()
+    assert "unstable" not in out.out + out.err

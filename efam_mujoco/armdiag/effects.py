@@ -52,9 +52,11 @@ class ArmEffect:
     params: tuple[Param, ...]
     per_muscle: bool = False
     switch_on: str = ""
+    per_pair: bool = False  # tried once per ordered (receiving, source) muscle pair of a section
 
     def knobs(self, base: Knobs, values: dict, muscle: int | None = None) -> Knobs:
-        """``base`` with this effect at ``values`` (and on ``muscle`` for per-muscle effects)."""
+        """``base`` with this effect at ``values`` (and on ``muscle`` for per-muscle effects, the
+        (receiving, source) muscle pair for per-pair effects)."""
         v = values
         if self.name == "payload":
             return with_values(base, payload_kg=v["mass_kg"])
@@ -65,6 +67,7 @@ class ArmEffect:
                 base,
                 damping_axial=base.damping_axial * v["axial_factor"],
                 damping_bend=base.damping_bend * v["bend_factor"],
+                medium_viscosity_Pa_s=v["medium_Pa_s"],
             )
         if self.name == "pressure_lag":
             lag = np.array(base.lag_s)
@@ -81,7 +84,8 @@ class ArmEffect:
         if self.name == "muscle_friction":
             return with_values(base, friction_N=v["f0_N"])
         if self.name == "cross_talk":
-            return with_values(base, cross_talk=v["coupling"])
+            receiver, source = muscle
+            return with_values(base, coupling=tuple(base.coupling) + ((receiver, source, v["coupling"]),))
         if self.name == "compliant_mount":
             return with_values(
                 base,
@@ -103,9 +107,11 @@ LIBRARY: tuple[ArmEffect, ...] = (
         switch_on="MJCF: body 'base' quaternion",
     ),
     ArmEffect(
-        "damping", "more (or less) damping than the model has, axial and bending separately",
-        "c_slide *= a, c_hinge *= b", (Param("axial_factor", 0.1, 40.0, True, start=1.0), Param("bend_factor", 0.1, 40.0, True, start=1.0, grid=(0.3, 3.0, 10.0))),
-        switch_on="MJCF: joint damping",
+        "damping", "more (or less) damping than the model has: axial and bending separately, and a viscous medium",
+        "c_slide *= a, c_hinge *= b; fluid viscosity mu (MuJoCo inertia-box drag on every body)",
+        (Param("axial_factor", 0.1, 40.0, True, start=1.0), Param("bend_factor", 0.1, 40.0, True, start=1.0, grid=(0.3, 3.0, 10.0)),
+         Param("medium_Pa_s", 1e-3, 100.0, True, start=1e-3, grid=(3.0,))),
+        switch_on="MJCF: joint damping, option viscosity",
     ),
     ArmEffect(
         "pressure_lag", "a slower valve or tube on one muscle (or on the supply of all)",
@@ -127,9 +133,11 @@ LIBRARY: tuple[ArmEffect, ...] = (
         switch_on="MJCF: joint frictionloss (segmented) or efam.muscle config keys (unsegmented)",
     ),
     ArmEffect(
-        "cross_talk", "the pressure of one muscle leaks into its neighbours' supply",
-        "P_i = (1 - c) P_cmd,i + c mean_j P_cmd,j (j: the other muscles of the section)",
-        (Param("coupling", -0.3, 0.6, start=0.0, grid=(0.1, 0.3)),), switch_on="command map (custom numeric efam_ctrl_mix)",
+        "cross_talk", "the pressure of one muscle leaks into a neighbour's supply (named: the receiving muscle, "
+        "from the source muscle)",
+        "P_i = P_cmd,i + c (P_cmd,j - P_cmd,i) (i receives from j, same section)",
+        (Param("coupling", -0.2, 0.6, start=0.0, grid=(0.25,)),), per_muscle=True, per_pair=True,
+        switch_on="command map (custom numeric efam_ctrl_coupling: i, j, c)",
     ),
     ArmEffect(
         "compliant_mount", "the base is not rigid: it rocks on a torsional spring",

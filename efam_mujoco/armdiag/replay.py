@@ -8,17 +8,17 @@ joint friction, damping, ``dynprm``) or as the command-to-ctrl map, so the arm b
 internals are never touched.
 
 Muscle friction, two forms. The plugin refuses effect terms on segmented muscles (the default
-physical arm), so there the muscle's dry friction force ``f0`` is lifted to the arm: every joint
-of the links gets ``frictionloss = f0 * sum_i |dL_i/dq|`` (L_i: muscle i's length at the rest
-pose), i.e. ``n f0`` on each extension slide and ``f0 sum_i |y_i|`` (``|x_i|``) on each bend hinge
--- the friction force the muscles in parallel exert on that joint. The links are in series, so
-each carries the full muscle friction force, whatever the number of disks D (per unit length the
-friction work grows with the length, as it does in a real muscle). MuJoCo's frictionloss is a
-dry-friction constraint (no pre-sliding width), made near-hard (``solimpfriction`` 0.9999,
+physical arm), so there the muscle's dry friction force ``f0`` is put on the muscle itself, as
+MuJoCo's dry friction of the muscle's whole-length tendon (``frictionloss = f0`` on tendon
+``s{j}m{i}``, the fixed tendon whose length is the muscle's): the friction force acts along the
+muscle, through its own length Jacobian, on every joint it spans, whatever the number of disks D.
+MuJoCo's frictionloss is a dry-friction constraint, made near-hard (``solimpfriction`` 0.9999,
 ``solreffriction`` two time steps) because at MuJoCo's default impedance the light links creep
-through it. Only an unsegmented model (one tendon per muscle,
-``mode="pcc"`` or a plain MJCF) gets the plugin's muscle-level friction term, config keys
-``effects=friction, friction.f0_N``. ``Replayer.tips`` rolls a batch of variants out in one call
+through it (the soft default fits a friction recording no better than no friction). An earlier
+form put ``f0 sum_i |dL_i/dq|`` on every joint separately; it fits worse (each joint sticks on
+its own, while a muscle's friction couples the joints it spans). Only an unsegmented model (one
+tendon per muscle, ``mode="pcc"`` or a plain MJCF) gets the plugin's muscle-level friction term,
+config keys ``effects=friction, friction.f0_N``. ``Replayer.tips`` rolls a batch of variants out in one call
 (threads where there are cores) and returns the tip at the recording's sample times.
 
 Timing: the arm starts at rest under the first command (``settle_s`` of simulated time at the
@@ -28,6 +28,7 @@ controller sends them); sample k is compared with the tip at the step that start
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -42,13 +43,21 @@ from .. import plugin
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: custom numerics that carry the command map in an MJCF (per muscle; mix: one value)
 CTRL_GAIN, CTRL_OFFSET, CTRL_MIX = "efam_ctrl_gain", "efam_ctrl_offset_Pa", "efam_ctrl_mix"
+#: one-way couplings in an MJCF: (receiving muscle index, source muscle index, c) triples, flattened
+CTRL_COUPLING = "efam_ctrl_coupling"
 #: friction term lifted from the muscle level: fixed pre-sliding widths, fitted amplitude
 FRICTION_SLIP_STRAIN = 3e-3
 FRICTION_SLIP_KPA = 6.0
-#: impedance of the joint form of muscle friction: MuJoCo's default soft frictionloss lets the light
+#: impedance of the tendon form of muscle friction: MuJoCo's default soft frictionloss lets the light
 #: links creep through it within a few steps (no visible friction), so it is made near-hard
 FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 FRICTION_SOLREF_STEPS = 2.0  # solref time constant, in time steps (the stiffest MuJoCo advises)
+#: a replayed tip farther than this from the origin (m) has diverged; diverged variants get
+#: FAILED_TIP_M everywhere, so that they fit nothing
+UNSTABLE_M, FAILED_TIP_M = 100.0, 1e3
+#: rotational inertia of the compliant mount's hinges (kg m^2, a mount plate): less lets the
+#: stiffer mounts of the search range outrun the time step
+MOUNT_ARMATURE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -58,9 +67,11 @@ class Knobs:
     gain: tuple = ()  # per muscle, effective pressure = gain * mixed command - offset
     offset_Pa: tuple = ()  # per muscle
     cross_talk: float = 0.0  # mixed_i = (1 - c) p_i + c mean(p_j, j neighbours in the section)
+    coupling: tuple = ()  # one-way leaks (i, j, c): mixed_i += c (p_j - p_i), after the mixing above
     lag_s: tuple = ()  # per muscle pressure time constant (filterexact)
     damping_axial: float = 1.0  # multiplier on the slide joints' damping
     damping_bend: float = 1.0  # multiplier on the hinge joints' damping
+    medium_viscosity_Pa_s: float = 0.0  # MuJoCo's fluid model (inertia boxes) in a viscous medium
     payload_kg: float = 0.0
     tilt_rad: tuple = (0.0, 0.0)  # base turned about the world x, then y axis
     mount_stiffness_N_m_per_rad: float = 0.0  # 0: rigid mount
@@ -107,13 +118,11 @@ class Replayer:
         self.dt = float(base.opt.timestep)
         self.max_Pa = base.actuator_ctrlrange[:, 1].copy()
         self._damping0 = {j.name: j.damping for j in self.spec.joints}
-        self._friction0 = {j.name: j.frictionloss for j in self.spec.joints}
         self.segmented = any(
             int(float(dict(p.config).get("segments", 1))) > 1
             for p in self.spec.plugins
             if p.plugin_name == plugin.PLUGIN_NAME
         )
-        self.friction_coefficients = muscle_joint_coefficients(base)
         self.nominal = Knobs(
             gain=(1.0,) * base.nu, offset_Pa=(0.0,) * base.nu, lag_s=tuple(base.actuator_dynprm[:, 0])
         )
@@ -123,6 +132,14 @@ class Replayer:
                 self.nominal, gain=stored[CTRL_GAIN], offset_Pa=stored.get(CTRL_OFFSET, [0.0] * base.nu),
                 cross_talk=float(stored.get(CTRL_MIX, [0.0])[0]),
             )  # fmt: skip
+        if CTRL_COUPLING in stored:
+            flat = stored[CTRL_COUPLING]
+            self.nominal = with_values(
+                self.nominal,
+                coupling=tuple(
+                    (int(flat[n]), int(flat[n + 1]), float(flat[n + 2])) for n in range(0, len(flat), 3)
+                ),
+            )
         t0 = self.time_s[0]
         self.n_settle = int(round(self.settle_s / self.dt))
         n_run = int(math.floor((self.time_s[-1] - t0) / self.dt)) + 1
@@ -136,6 +153,8 @@ class Replayer:
         )
         self._datas = None
         self.rollouts = 0
+        self.unstable = 0  # variants that diverged (scored as failed, never printed)
+        self.warnings = 0  # MuJoCo warnings caught during the rollouts
 
     # ------------------------------------------------------------------ variants as models
 
@@ -148,6 +167,8 @@ class Replayer:
                 j.damping = self._damping0[j.name] * k.damping_axial
             elif j.type == mujoco.mjtJoint.mjJNT_HINGE:
                 j.damping = self._damping0[j.name] * k.damping_bend
+        if k.medium_viscosity_Pa_s > 0:
+            spec.option.viscosity = k.medium_viscosity_Pa_s
         for act, tau in zip(spec.actuators, k.lag_s):
             act.dynprm[0] = tau
         if any(k.tilt_rad):
@@ -170,17 +191,15 @@ class Replayer:
             for name, axis in (("mount_x", [1, 0, 0]), ("mount_y", [0, 1, 0])):
                 base.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
                                stiffness=k.mount_stiffness_N_m_per_rad,
-                               damping=k.mount_damping_N_m_s_per_rad, armature=1e-4)  # fmt: skip
+                               damping=k.mount_damping_N_m_s_per_rad, armature=MOUNT_ARMATURE)  # fmt: skip
             base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.005, 0, 0], contype=0, conaffinity=0,
                           group=2, mass=1e-3)  # fmt: skip
         if k.friction_N > 0 and self.segmented:
-            for j in spec.joints:
-                if j.name in self.friction_coefficients:
-                    j.frictionloss = (
-                        self._friction0[j.name] + k.friction_N * self.friction_coefficients[j.name]
-                    )
-                    j.solref_friction = [FRICTION_SOLREF_STEPS * self.dt, 1.0]
-                    j.solimp_friction = list(FRICTION_SOLIMP)
+            for t in spec.tendons:
+                if t.name in self.muscles:  # the whole muscle's tendon (its length = the muscle's)
+                    t.frictionloss = k.friction_N
+                    t.solref_friction = [FRICTION_SOLREF_STEPS * self.dt, 1.0]
+                    t.solimp_friction = list(FRICTION_SOLIMP)
         elif k.friction_N > 0:
             for instance in spec.plugins:
                 if instance.plugin_name == plugin.PLUGIN_NAME:
@@ -200,11 +219,14 @@ class Replayer:
         :class:`Replayer` replays as it was identified)."""
         spec = self.edited_spec(k)
         for n in list(spec.numerics):
-            if n.name in (CTRL_GAIN, CTRL_OFFSET, CTRL_MIX):
+            if n.name in (CTRL_GAIN, CTRL_OFFSET, CTRL_MIX, CTRL_COUPLING):
                 spec.delete(n)
         spec.add_numeric(name=CTRL_GAIN, data=list(k.gain), size=len(k.gain))
         spec.add_numeric(name=CTRL_OFFSET, data=list(k.offset_Pa), size=len(k.offset_Pa))
         spec.add_numeric(name=CTRL_MIX, data=[k.cross_talk], size=1)
+        if k.coupling:
+            flat = [float(x) for triple in k.coupling for x in triple]
+            spec.add_numeric(name=CTRL_COUPLING, data=flat, size=len(flat))
         return spec
 
     def controls(self, k: Knobs, command_Pa: np.ndarray | None = None) -> np.ndarray:
@@ -217,6 +239,8 @@ class Replayer:
                     sub = p[:, group]
                     others = (sub.sum(1, keepdims=True) - sub) / (len(group) - 1)
                     mixed[:, group] = (1 - k.cross_talk) * sub + k.cross_talk * others
+        for i, j, c in k.coupling:
+            mixed[:, i] += c * (p[:, j] - p[:, i])
         out = np.asarray(k.gain) * mixed - np.asarray(k.offset_Pa)
         return np.clip(out, 0.0, self.max_Pa)
 
@@ -241,6 +265,8 @@ class Replayer:
         return np.stack(out)
 
     def _rollout(self, models, ctrl) -> np.ndarray:
+        for m in models:  # an unstable variant keeps its NaNs (no silent reset to the rest pose)
+            m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         m0 = models[0]
         datas = [mujoco.MjData(m0) for _ in range(max(1, min(self.threads, len(models))))]
         init = np.empty((len(models), mujoco.mj_stateSize(m0, _STATE)))
@@ -250,34 +276,28 @@ class Replayer:
             d.act[:] = ctrl[n, 0][m.actuator_actadr >= 0] if m.na == m.nu else d.act
             mujoco.mj_getState(m, d, init[n], _STATE)
         adr = m0.sensor("tip_pos").adr[0]
-        _, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
+        with _quiet_warnings() as caught:
+            _, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
         self.rollouts += len(models)
-        bad = ~np.all(np.isfinite(sensordata[:, :, adr : adr + 3]), axis=(1, 2))
         tips = sensordata[:, :, adr : adr + 3].copy()
-        tips[bad] = 1e3  # a variant that blew up fits nothing
+        bad = ~np.all(np.isfinite(tips) & (np.abs(tips) < UNSTABLE_M), axis=(1, 2))
+        tips[bad] = FAILED_TIP_M  # a variant that blew up fits nothing: scored as a failed candidate
+        self.unstable += int(bad.sum())
+        self.warnings += len(caught)
         return tips
 
 
-def muscle_joint_coefficients(model: mujoco.MjModel) -> dict[str, float]:
-    """``sum_i |dL_i/dq|`` per slide/hinge joint at the rest pose (L_i: actuator i's length): the
-    generalized force of a unit friction force in every muscle. Central differences of the
-    actuator lengths (the transmission is linear in q, so they are exact)."""
-    data = mujoco.MjData(model)
-    out = {}
-    h = 1e-6
-    for j in range(model.njnt):
-        if int(model.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE)):
-            continue
-        lengths = []
-        for sign in (1.0, -1.0):
-            data.qpos[:] = model.qpos0
-            data.qpos[model.jnt_qposadr[j]] += sign * h
-            mujoco.mj_fwdPosition(model, data)
-            lengths.append(data.actuator_length.copy())
-        coefficient = float(np.abs((lengths[0] - lengths[1]) / (2 * h)).sum())
-        if coefficient > 0:
-            out[model.joint(j).name] = coefficient
-    return out
+@contextlib.contextmanager
+def _quiet_warnings():
+    """MuJoCo's warnings (an unstable candidate's "Nan, Inf or huge value in QACC") collected
+    instead of printed; the previous handler is restored afterwards."""
+    caught: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(caught.append)
+    try:
+        yield caught
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 def with_values(k: Knobs, **changes) -> Knobs:

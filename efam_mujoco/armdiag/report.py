@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_json_atomic, write_text_atomic
+from ..files import save_figure, write_json_atomic, write_text_atomic
 from .diagnosis import ArmDiagnosis, diagnose_arm
 from .recording import read_csv
 from .replay import Replayer
@@ -33,6 +33,7 @@ def text(d: ArmDiagnosis) -> str:
     out += ["", "Candidates (held-out tip RMS, probability)"]
     for c in d.candidates:
         muscle = f" [{c['muscle']}]" if c.get("muscle") else ""
+        muscle = f" [{c['muscle']} from {c['source_muscle']}]" if c.get("source_muscle") else muscle
         out.append(f"  {c['name'] + muscle:26s} {_mm(c['heldout_rms_m']):>10s}  p = {c['probability']:.3f}")
     out.append("")
     v = d.verdict
@@ -40,6 +41,7 @@ def text(d: ArmDiagnosis) -> str:
         out.append(f"Found: none ({v['reason']}; p = {v['probability']:.2f})")
     for e in d.effects:
         muscle = f" on muscle {e['muscle']}" if e.get("muscle") else ""
+        muscle += f" (from muscle {e['source_muscle']})" if e.get("source_muscle") else ""
         out.append(f"Found: {e['name']}{muscle} -- {e['summary']} (p = {e['probability']:.2f})")
         out.append(f"  equation: {e['equation']}")
         out.append("  parameters: " + ", ".join(f"{k} = {val:.4g}" for k, val in e["parameters"].items()))
@@ -54,8 +56,11 @@ def text(d: ArmDiagnosis) -> str:
             "noise, and no library term explains it (see 'Located mismatch')."
         )
     if v["ambiguous"]:
+        paired = v["paired"]
         out.append(
-            f"AMBIGUOUS: {v['answer']} and {', '.join(v['alternatives'])} explain this data about equally well."
+            f"AMBIGUOUS: {v['answer']} and {', '.join(v['alternatives'])} are not told apart by the held-out "
+            f"data (paired comparison over {paired['segments']} segments: t = {paired['t']:.2f}, "
+            f"needed {paired['critical_t']:.2f})."
         )
     elif not v["confident"]:
         out.append("Not confident (probability below 0.8).")
@@ -114,7 +119,7 @@ def figures(d: ArmDiagnosis, directory, prefix: str = "armdiag") -> list[Path]:
     axes[1].set_xlabel("time (s)")
     fig.tight_layout()
     path = directory / f"{prefix}_tip.png"
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return [path]
 

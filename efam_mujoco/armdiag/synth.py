@@ -2,10 +2,16 @@
 
 The concealed effects are written here independently of the library (:mod:`efam_mujoco.armdiag.effects`,
 :mod:`.replay`) and in other functional forms: a payload with an off-axis centre of mass added to
-the tip body's inertia, a tilt as a rotated gravity and a rotated marker frame, hinge-only damping, damping along the muscles (tendon damping) or a viscous medium, a second-order lag with a transport delay, a leak with an offset and a
-proportional loss, MuJoCo's dry joint friction, a one-way low-passed cross-talk between two
-muscles, a ball-jointed springy mount. Protocols: steps, ramps, sinusoids, random sequences and a
-closed-loop tip controller; marker noise, dropouts in bursts, 30-200 Hz sampling.
+the tip body's inertia; a tilt as a rotated gravity and a rotated marker frame; hinge-only damping,
+damping along the muscles (tendon damping) or a viscous medium; a second-order lag with a transport
+delay; a leak through an orifice against the valve's flow (the pressure loss grows with the square root
+of the pressure); a Dahl friction force in every muscle
+(pre-sliding, rate-independent, applied as generalized forces through the muscles' own length
+Jacobians, each muscle its own level); a one-way pneumatic coupling through a shared supply line
+(the line follows one muscle's command with its own time constant and leaks into a neighbour's
+valve through an orifice); a ball-jointed springy mount. Protocols: steps, ramps, sinusoids,
+random sequences and a closed-loop tip controller; marker noise, dropouts in bursts, 30-200 Hz
+sampling.
 """
 
 from __future__ import annotations
@@ -25,6 +31,9 @@ TRUTHS = (
 )  # fmt: skip
 PROTOCOLS = ("steps", "ramps", "sinusoids", "random", "closed_loop")
 SETTLE_S = 3.0
+#: rotational inertia of the springy mount's plate (kg m^2): with less, the stiff ball joint's own
+#: mode outruns the arm's time step (the truth simulation blows up)
+MOUNT_ARMATURE = 2e-3
 
 
 @dataclass
@@ -89,11 +98,12 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
             type=mujoco.mjtJoint.mjJNT_BALL,
             stiffness=tp["k"],
             damping=tp["c"],
-            armature=1e-4,
+            armature=MOUNT_ARMATURE,
         )
         if base.mass == 0:
             base.explicitinertial, base.mass, base.inertia = True, 5e-3, [1e-6] * 3
     model = spec.compile()
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)  # a diverging truth raises below
     data = mujoco.MjData(model)
     dt = model.opt.timestep
     rate = rate_Hz or float(rng.uniform(30, 200))
@@ -130,12 +140,14 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
     elif truth.name == "damping" and tp["form"] == "tendon":  # viscous bladders: damping along each muscle
         model.tendon_damping[:] = tp["c_N_s_per_m"]
     elif truth.name == "muscle_friction":
-        model.dof_frictionloss[:] = np.where(
-            model.jnt_type[model.dof_jntid] == mujoco.mjtJoint.mjJNT_SLIDE, tp["slide_N"], tp["hinge_N_m"]
-        )
-        # near-hard (at the default impedance the light links of the segmented arm creep through it)
-        model.dof_solimp[:, :2] = 0.9999
-        model.dof_solref[:, 0] = 2 * dt
+        # each muscle's length Jacobian from its fixed tendon's joint coefficients
+        muscle_jac = np.zeros((M, model.nv))
+        for i, name in enumerate(muscles):
+            t = model.tendon(name).id
+            for w in range(model.tendon_adr[t], model.tendon_adr[t] + model.tendon_num[t]):
+                muscle_jac[i, model.jnt_dofadr[model.wrap_objid[w]]] += model.wrap_prm[w]
+        dahl_force = np.zeros(M)
+        dahl_limit = tp["fc_N"] * np.asarray(tp["spread"])
     # -- commands (open loop now; closed loop inside the step loop)
     closed = protocol == "closed_loop"
     if not closed:
@@ -180,14 +192,20 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
             lp_state[1] = lp_state[1] + a * (lp_state[0] - lp_state[1])
             p[idx] = lp_state[1][idx]
         elif truth.name == "weak_muscle":
+            # orifice leak (flow ~ sqrt(P)) against the valve's flow (~ cmd - P): P = cmd - a sqrt(P);
+            # the muscle's own pressure dynamics (the model's) follow
             i = muscles.index(truth.muscle)
-            p[i] = max(0.0, p[i] - tp["drop_Pa"] - tp["loss"] * p[i])
+            a = tp["leak_sqrt_Pa"]
+            p[i] = ((-a + math.sqrt(a * a + 4 * command[i])) / 2) ** 2
         elif truth.name == "cross_talk":
+            # a supply line shared with muscle `from` follows its command (own time constant) and
+            # leaks into muscle `to`'s valve through an orifice (flow ~ sqrt of the pressure difference)
             i, j = muscles.index(tp["to"]), muscles.index(tp["from"])
             if lp_state is None:
-                lp_state = 0.0
-            lp_state += (1 - math.exp(-dt / 0.1)) * ((command[j] - command[i]) - lp_state)
-            p[i] = command[i] + tp["c"] * lp_state
+                lp_state = command[j]
+            lp_state += (1 - math.exp(-dt / tp["tau_line_s"])) * (command[j] - lp_state)
+            gap = lp_state - command[i]
+            p[i] = command[i] + tp["c"] * math.copysign(math.sqrt(abs(gap) * tp["ref_Pa"]), gap)
         data.ctrl[:] = np.clip(p, 0, hi_P)
         if k == -n_settle:
             data.act[:] = data.ctrl
@@ -198,6 +216,11 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
                 mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, v, 0)
                 lin = v[3:]
                 data.xfrc_applied[b, :3] = -tp["c_N_s_per_m"] * lin
+        if truth.name == "muscle_friction":  # Dahl: dF/dx = (Fc / x_slip) (1 - F/Fc sgn(dx)), exact per step
+            dx = muscle_jac @ data.qvel * dt
+            target = np.sign(dx) * dahl_limit
+            dahl_force = target + (dahl_force - target) * np.exp(-np.abs(dx) / tp["slip_m"])
+            data.qfrc_applied[:] = -muscle_jac.T @ dahl_force
         mujoco.mj_step(model, data)
         if k >= 0:
             tips[k] = rotation @ data.sensordata[tip_adr : tip_adr + 3]
@@ -219,8 +242,9 @@ def make_recording(spec: mujoco.MjSpec, truth: Truth, protocol: str, rng: np.ran
     return ArmRecording(t_samples, muscles, commands, tip, meta=meta)
 
 
-def random_truth(name: str, muscles: list[str], rng: np.random.Generator) -> Truth:
-    """A concealed effect of random magnitude (magnitudes a lab would notice, not beyond)."""
+def random_truth(name: str, muscles: list[str], rng: np.random.Generator, max_Pa: float = 517e3) -> Truth:
+    """A concealed effect of random magnitude (magnitudes a lab would notice, not beyond);
+    ``max_Pa``: the muscles' top of range (sets the leak and coupling scales)."""
     groups: dict[str, list[str]] = {}
     for m in muscles:
         groups.setdefault(m.split("m")[0], []).append(m)
@@ -250,19 +274,28 @@ def random_truth(name: str, muscles: list[str], rng: np.random.Generator) -> Tru
             name, {"tau_s": float(rng.uniform(0.15, 0.6)), "delay_s": float(rng.uniform(0.02, 0.06))}, muscle
         )
     if name == "weak_muscle":
+        loss = float(rng.uniform(0.12, 0.4))  # pressure lost at half the range
+        half = 0.5 * max_Pa
         return Truth(
             name,
-            {"drop_Pa": float(rng.uniform(10e3, 40e3)), "loss": float(rng.uniform(0.12, 0.4))},
+            {"leak_sqrt_Pa": loss * half / math.sqrt((1 - loss) * half), "loss_at_half_range": loss},
             str(rng.choice(muscles)),
-        )
+        )  # fmt: skip
     if name == "muscle_friction":
         return Truth(
-            name, {"slide_N": float(rng.uniform(1.0, 6.0)), "hinge_N_m": float(rng.uniform(0.01, 0.06))}
-        )
+            name,
+            {"fc_N": float(rng.uniform(0.6, 3.0)), "spread": [float(x) for x in rng.uniform(0.7, 1.3, len(muscles))],
+             "slip_m": float(rng.uniform(2e-4, 1e-3))},
+        )  # fmt: skip
     if name == "cross_talk":
         group = groups[str(rng.choice(list(groups)))]
         to, frm = rng.choice(group, 2, replace=False)
-        return Truth(name, {"c": float(rng.uniform(0.15, 0.4)), "to": str(to), "from": str(frm)}, str(to))
+        return Truth(
+            name,
+            {"c": float(rng.uniform(0.15, 0.4)), "to": str(to), "from": str(frm),
+             "tau_line_s": float(rng.uniform(0.05, 0.3)), "ref_Pa": 0.2 * max_Pa},
+            str(to),
+        )  # fmt: skip
     if name == "compliant_mount":
         return Truth(name, {"k": float(rng.uniform(15.0, 200.0)), "c": float(rng.uniform(0.05, 1.0))})
     raise ValueError(name)
