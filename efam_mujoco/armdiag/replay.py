@@ -55,6 +55,8 @@ FRICTION_SOLREF_STEPS = 2.0  # solref time constant, in time steps (the stiffest
 #: a replayed tip farther than this from the origin (m) has diverged; diverged variants get
 #: FAILED_TIP_M everywhere, so that they fit nothing
 UNSTABLE_M, FAILED_TIP_M = 100.0, 1e3
+#: joint speed (m/s or rad/s) no arm reaches under pressure: beyond it a variant has diverged
+UNSTABLE_SPEED = 1e4
 #: rotational inertia of the compliant mount's hinges (kg m^2, a mount plate): less lets the
 #: stiffer mounts of the search range outrun the time step
 MOUNT_ARMATURE = 1e-3
@@ -277,10 +279,15 @@ class Replayer:
             mujoco.mj_getState(m, d, init[n], _STATE)
         adr = m0.sensor("tip_pos").adr[0]
         with _quiet_warnings() as caught:
-            _, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
+            state, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
         self.rollouts += len(models)
         tips = sensordata[:, :, adr : adr + 3].copy()
         bad = ~np.all(np.isfinite(tips) & (np.abs(tips) < UNSTABLE_M), axis=(1, 2))
+        # a diverged arm can keep a bounded, frozen tip (its angles wrap, its sensors stop
+        # updating once MuJoCo flags the bad accelerations): judge the joint speeds too
+        # (FULLPHYSICS state = time, qpos, qvel, ...)
+        speeds = state[:, :, 1 + m0.nq : 1 + m0.nq + m0.nv]
+        bad |= ~np.all(np.isfinite(speeds) & (np.abs(speeds) < UNSTABLE_SPEED), axis=(1, 2))
         tips[bad] = FAILED_TIP_M  # a variant that blew up fits nothing: scored as a failed candidate
         self.unstable += int(bad.sum())
         self.warnings += len(caught)
