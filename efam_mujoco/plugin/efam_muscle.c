@@ -1318,6 +1318,7 @@ typedef struct {
   double tau, tau_a, tau_b; // the link's twist, blended
   double weight, weight_a, weight_b;  // 1: arc geometry, 0: linear; its derivatives in (a, b)
   double twist_before;      // T: the twists of the proximal links
+  double cos_T, sin_T;      // of T, once per link (not per muscle segment)
 } ArcLinkState;
 
 static void arc_link_state(const ArcLink* L, const mjtNum* qpos, ArcLinkState* st) {
@@ -1380,7 +1381,7 @@ static void arc_link_state(const ArcLink* L, const mjtNum* qpos, ArcLinkState* s
 
 // Length of a segment and its derivatives (d/de, d/da, d/db, d/dT).
 static double arc_segment_length(const ArcSegment* sg, const ArcLinkState* st, double e, double grad[4]) {
-  double cT = cos(st->twist_before), sT = sin(st->twist_before);
+  double cT = st->cos_T, sT = st->sin_T;
   double x = cT * sg->x + sT * sg->y, y = -sT * sg->x + cT * sg->y;  // Rz(-T) (x, y)
   // the linear geometry (in the bundle's frame too)
   double linear = e + 0.5 * (y * st->a - x * st->b);
@@ -1437,6 +1438,8 @@ static void add_arc_segment_forces(const mjModel* m, mjData* d, const Muscle* mu
     arc_link_state(&g->link[k], d->qpos, &st[k]);
     int p = g->link[k].parent;
     st[k].twist_before = p < 0 ? 0.0 : st[p].twist_before + st[p].tau;
+    st[k].cos_T = cos(st[k].twist_before);
+    st[k].sin_T = sin(st[k].twist_before);
     pull[k] = beyond[k] = 0.0;
   }
   for (int k = 0; k < mu->nactuator; k++) {
