@@ -41,7 +41,7 @@ answer is the most probable hypothesis; it is *confident* when its probability i
 ``CONFIDENT``. Otherwise the runner-up is tested against it: two library hypotheses (or ``none``)
 *cannot be separated* when the paired test over blocks of their held-out squared errors (the
 held-out log-likelihood difference against its own spread between blocks) gives
-|z| < ``Z_SEPARATE``; a library hypothesis and ``outside the library`` cannot be separated when
+``abs(z) < Z_SEPARATE``; a library hypothesis and ``outside the library`` cannot be separated when
 their posterior odds are below ``ODDS_SEPARATE`` (a Bayes factor under 3, "not worth more than a
 bare mention"). Only then is the result *ambiguous* and both are named (``design`` then proposes
 the experiment that separates them); an answer neither confident nor ambiguous is *tentative*:
@@ -145,7 +145,7 @@ def block_sse(residual: np.ndarray, block: np.ndarray) -> np.ndarray:
 def paired_z(sse_a, sse_b, scale_b: float = 1.0) -> float:
     """Paired test over blocks: mean per-block difference of held-out squared error (a less b,
     b's scaled by ``scale_b``) over its standard error. Positive: ``b`` predicts unseen blocks
-    better; |z| < ``Z_SEPARATE``: the data cannot tell the two apart. Under a Gaussian noise
+    better; ``abs(z) < Z_SEPARATE``: the data cannot tell the two apart. Under a Gaussian noise
     model this is the held-out log-likelihood difference over its block-to-block spread."""
     d = np.asarray(sse_a, float) - scale_b * np.asarray(sse_b, float)
     if len(d) < 3:
