@@ -232,7 +232,7 @@ ENERGY_ARMS = {  # label: (sections, orientation, D (None: the default))
 def released(sections, orientation, disks, mode, damped):
     """The arm at rest at 400/250/250 kPa per section (found with damping), pressures switched to
     300 kPa: it swings under gravity. Built at the builder's own step and integrator for its
-    damping (the undamped arm: RK4). Returns (spec, model, data, total energy function)."""
+    damping (the undamped arm: RK4). Returns (spec, model, data, the muscles' potential)."""
 
     def make(scale):
         return arm.ArmSpec(
@@ -254,35 +254,14 @@ def released(sections, orientation, disks, mode, damped):
         model, names, [load_muscle("FAM1")] * len(names), [300e3] * len(names)
     )
 
-    def total():
-        return (
-            arm_energy.kinetic_energy(model, data) + arm_energy.gravity_energy(model, data) + potential(data)
-            + arm_energy.spring_energy(model, data)
-        )  # fmt: skip
-
-    return spec, model, data, total
+    return spec, model, data, potential
 
 
-def balance(model, data, total, duration, every, label):
-    """Step for ``duration``: (largest kinetic energy, largest |E(t) - E(0) + damping work|, energy
-    lost, damping work (trapezoidal, every step when damped), wall time)."""
-    e0, work, worst, kinetic = total(), 0.0, 0.0, 0.0
-    power = arm_energy.damping_power(model, data)
-    steps = int(round(duration / model.opt.timestep))
+def balance(model, data, potential, duration, every, label):
+    """:func:`efam_mujoco.arm.energy.energy_balance` with a progress bar, and its wall time."""
     start = time.perf_counter()
-    for step in progress(range(1, steps + 1), label, total=steps):
-        mujoco.mj_step(model, data)
-        if step % every and step != steps:
-            continue
-        mujoco.mj_forward(model, data)
-        new_power = arm_energy.damping_power(model, data)
-        work += 0.5 * (power + new_power) * model.opt.timestep * every
-        power = new_power
-        kinetic = max(kinetic, arm_energy.kinetic_energy(model, data))
-        worst = max(worst, abs(total() - e0 + work))
-    if not np.all(np.isfinite(data.qpos)):
-        raise RuntimeError(f"{label}: diverged")
-    return kinetic, worst, e0 - total(), work, time.perf_counter() - start
+    result = arm_energy.energy_balance(model, data, potential, duration, every, label)
+    return result, time.perf_counter() - start
 
 
 def energy(args) -> dict:
@@ -295,9 +274,10 @@ def energy(args) -> dict:
         D = args.disks or disks or arm.DEFAULT_DISKS
         for mode in args.modes:
             key = f"{label} {orientation} D={D} {mode}"
-            spec, model, data, total = released(sections, orientation, D, mode, damped=False)
+            spec, model, data, potential = released(sections, orientation, D, mode, damped=False)
             choice = timestep.recorded_timestep(model)
-            kinetic, drift, _, _, wall = balance(model, data, total, args.duration, 10, key + " undamped")
+            run, wall = balance(model, data, potential, args.duration, 10, key + " undamped")
+            kinetic, drift = run.largest_kinetic_J, run.worst_imbalance_J
             row = {
                 "undamped_integrator": choice.integrator,
                 "undamped_timestep_s": model.opt.timestep,
@@ -314,8 +294,9 @@ def energy(args) -> dict:
                 f"{row['omega_max_dt']:.2f}), {args.duration:g} s: drift {row['drift_pct_of_kinetic']:.3f} % of "
                 f"{kinetic:.3f} J ({wall:.0f} s wall)", flush=True,
             )  # fmt: skip
-            spec, model, data, total = released(sections, orientation, D, mode, damped=True)
-            _, _, lost, work, _ = balance(model, data, total, 3.0, 1, key + " damped")
+            spec, model, data, potential = released(sections, orientation, D, mode, damped=True)
+            run, _ = balance(model, data, potential, 3.0, 1, key + " damped")
+            lost, work = run.lost_J, run.damping_work_J
             row.update({
                 "damped_integrator": timestep.recorded_timestep(model).integrator,
                 "damped_timestep_s": model.opt.timestep, "damped_lost_J": lost, "damped_work_J": work,

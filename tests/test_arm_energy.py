@@ -29,7 +29,7 @@ def horizontal_arm(mode, damped=True, **kw):
 def released_arm(mode, damped):
     """The arm at rest at 400/250/250 kPa (found on the damped arm), pressures switched to
     300 kPa at once: it swings under gravity about its new rest pose. Returns (model, data,
-    total mechanical energy as a function)."""
+    the muscles' potential at 300 kPa)."""
     rest_model = arm.build_model(horizontal_arm(mode))
     rest = mujoco.MjData(rest_model)
     assert arm.static_equilibrium(rest_model, rest, [400e3, 250e3, 250e3])
@@ -40,36 +40,7 @@ def released_arm(mode, damped):
     data.ctrl[:] = 300e3
     mujoco.mj_forward(model, data)
     potential = energy.MusclePotential(model, arm.muscle_names(spec)[0], [FAM1] * 3, [300e3] * 3)
-
-    def total():
-        return (
-            energy.kinetic_energy(model, data)
-            + energy.gravity_energy(model, data)
-            + potential(data)
-            + energy.spring_energy(model, data)
-        )
-
-    return model, data, total
-
-
-def run_energy_balance(model, data, total, duration, every=1):
-    """Step for ``duration``; returns (largest kinetic energy, largest |E(t) - E(0) + damping work|,
-    energy lost, damping work). The balance is evaluated every ``every`` steps (1 with damping:
-    the damping work is integrated step by step, trapezoidal)."""
-    e0, work, worst, kinetic = total(), 0.0, 0.0, 0.0
-    power = energy.damping_power(model, data)
-    steps = int(round(duration / model.opt.timestep))
-    for step in range(1, steps + 1):
-        mujoco.mj_step(model, data)
-        if step % every and step != steps:
-            continue
-        mujoco.mj_forward(model, data)
-        new_power = energy.damping_power(model, data)
-        work += 0.5 * (power + new_power) * model.opt.timestep * every
-        power = new_power
-        kinetic = max(kinetic, energy.kinetic_energy(model, data))
-        worst = max(worst, abs(total() - e0 + work))
-    return kinetic, worst, e0 - total(), work
+    return model, data, potential
 
 
 @pytest.mark.parametrize("mode", ["segmented", "pcc"])
@@ -79,7 +50,7 @@ def test_undamped_arm_conserves_energy(mode):
     kinetic + gravity + muscle potential (+ the PCC coupling springs) stays within 1 % of the
     motion's kinetic energy. CI runs the first ``STEP_BUDGET`` steps (the whole 10 s when D is
     small); bench/bench_arm.py energy runs 10 s."""
-    model, data, total = released_arm(mode, damped=False)
+    model, data, potential = released_arm(mode, damped=False)
     choice = timestep.recorded_timestep(model)
     assert (
         not choice.given
@@ -89,7 +60,8 @@ def test_undamped_arm_conserves_energy(mode):
     assert choice.omega_max_rad_s * model.opt.timestep <= 2 * np.sqrt(2) / timestep.TIMESTEP_SAFETY["RK4"]
     assert not (model.dof_damping.any() or model.tendon_damping.any())
     duration = min(10.0, STEP_BUDGET * model.opt.timestep)
-    kinetic, drift, _, _ = run_energy_balance(model, data, total, duration, every=10)
+    run = energy.energy_balance(model, data, potential, duration, every=10)
+    kinetic, drift = run.largest_kinetic_J, run.worst_imbalance_J
     assert kinetic > 0.01
     assert drift < 0.01 * kinetic, f"energy drift {drift:.3g} J = {drift / kinetic:.2%} of the kinetic energy"
     print(f"\n{mode}: {duration:.2f} s at {model.opt.timestep * 1e3:g} ms: energy drift {drift / kinetic:.3%} "
@@ -100,10 +72,11 @@ def test_undamped_arm_conserves_energy(mode):
 def test_damped_arm_loses_exactly_the_damping_work(mode):
     """Default D, damping, time step and integrator (implicitfast), released as above: the energy
     lost equals the work of the joint (and PCC coupling) dampers, the only dissipation, within 2 %."""
-    model, data, total = released_arm(mode, damped=True)
+    model, data, potential = released_arm(mode, damped=True)
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     assert not timestep.recorded_timestep(model).given
-    _, _, lost, work = run_energy_balance(model, data, total, 3.0)
+    run = energy.energy_balance(model, data, potential, 3.0)
+    lost, work = run.lost_J, run.damping_work_J
     assert lost > 0.1
     assert lost == pytest.approx(work, rel=0.02)
     print(f"\n{mode}: {model.opt.timestep * 1e3:g} ms: energy lost {lost:.4f} J, damping work {work:.4f} J")

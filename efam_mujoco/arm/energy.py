@@ -9,9 +9,12 @@ the model has no hidden dissipation.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
+from ..progress import progress
 from .builder import SegmentLengths, segment_tendons
 
 _GRID = 200_001  # samples of the force-length table per (muscle, pressure)
@@ -81,3 +84,53 @@ def spring_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     joints = model.jnt_qposadr
     turn = data.qpos[joints] - model.qpos_spring[joints]
     return 0.5 * float(np.sum(model.tendon_stiffness * stretch**2) + np.sum(model.jnt_stiffness * turn**2))
+
+
+def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData, potential: MusclePotential) -> float:
+    """Kinetic + gravity + the muscles' potential at fixed pressure + the springs' energy, J."""
+    return (
+        kinetic_energy(model, data)
+        + gravity_energy(model, data)
+        + potential(data)
+        + spring_energy(model, data)
+    )
+
+
+@dataclass(frozen=True)
+class EnergyBalance:
+    """What :func:`energy_balance` measured over a run, J."""
+
+    largest_kinetic_J: float  # the motion's largest kinetic energy
+    worst_imbalance_J: float  # largest |E(t) - E(0) + damping work so far|
+    lost_J: float  # E(0) - E(end)
+    damping_work_J: float  # the dampers' work (trapezoidal in time)
+
+
+def energy_balance(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    potential: MusclePotential,
+    duration_s: float,
+    every: int = 1,
+    label: str | None = None,
+) -> EnergyBalance:
+    """Step for ``duration_s`` at fixed controls and book the mechanical energy against the
+    dampers' work, every ``every`` steps (1 with damping: the work is integrated step by step).
+    ``label``: show a progress bar. Raises if the state stops being finite."""
+    e0, work, worst, kinetic = mechanical_energy(model, data, potential), 0.0, 0.0, 0.0
+    power = damping_power(model, data)
+    steps = int(round(duration_s / model.opt.timestep))
+    numbers = range(1, steps + 1)
+    for step in numbers if label is None else progress(numbers, label, total=steps):
+        mujoco.mj_step(model, data)
+        if step % every and step != steps:
+            continue
+        mujoco.mj_forward(model, data)
+        new_power = damping_power(model, data)
+        work += 0.5 * (power + new_power) * model.opt.timestep * every
+        power = new_power
+        kinetic = max(kinetic, kinetic_energy(model, data))
+        worst = max(worst, abs(mechanical_energy(model, data, potential) - e0 + work))
+    if not np.all(np.isfinite(data.qpos)):
+        raise FloatingPointError(f"{label or 'energy balance'}: the arm's state is not finite (diverged)")
+    return EnergyBalance(kinetic, worst, e0 - mechanical_energy(model, data, potential), work)
