@@ -231,3 +231,26 @@ def test_muscles_are_drawn_between_the_plates(domain, disks):
     tip_in_base = rotation.T @ (physics.tip_position() - base)
     lengths = 2 * np.array([g.size[2] for g in geoms]).reshape(sections, 3, disks).sum(axis=2)
     assert lengths.sum(axis=0) == pytest.approx(np.full(3, tip_in_base[2]), rel=1e-3)
+
+
+@pytest.mark.filterwarnings("ignore:.*logging.warn.*:DeprecationWarning")  # dm_control's own log call
+def test_an_unstable_state_raises_physics_error_or_logs_when_suppressed():
+    """The suite's lean step keeps dm_control's contract: a MuJoCo warning during a step raises
+    ``PhysicsError`` naming it, or only logs inside ``suppress_physics_errors``; the warning
+    counters end as MuJoCo left them."""
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0})
+    env.reset()
+    physics = env.physics
+    physics.data.qvel[0] = np.nan
+    with pytest.raises(control.PhysicsError, match="mjWARN_BADQVEL"):
+        physics.step(3)
+    bad_qvel = int(physics.data.warning.number[int(common.mj.mjtWarning.mjWARN_BADQVEL)])
+    assert bad_qvel == 1
+    env.reset()
+    physics.data.qvel[0] = np.nan
+    with physics.suppress_physics_errors():
+        physics.step(3)  # logged, not raised
+    assert physics.data.warning.number.sum() >= 1
+    env.reset()
+    physics.step(100)  # a sound state steps without complaint
+    assert physics.data.warning.number.sum() == 0

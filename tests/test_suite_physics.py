@@ -119,6 +119,31 @@ def test_inverse_statics_meets_targets():
     assert solution.jacobian_m.shape == (3, 9)
 
 
+def test_inverse_statics_jacobian_is_the_rest_tips_at_the_solution():
+    """The feedback's Jacobian against central differences of the statics at the solution.
+    Bundle-reach seed 18's target lies where one direction is weak (smallest singular value
+    about 0.1 m per unit fraction): a Broyden estimate got it 16 times too small there, and the
+    feedback drove the tip 201 mm off."""
+    env = suite.load("bundle", "reach", task_kwargs={"random": 18})
+    env.reset()
+    spec = env.task.arm_spec
+    target = env.physics.to_base(env.physics.target_position())
+    solution = controllers.inverse_statics(spec, target)
+    h, rated = 1e-3, spec.max_pressure_Pa
+    central = np.empty((3, 3))
+    for i in range(3):
+        plus, minus = solution.fractions.copy(), solution.fractions.copy()
+        plus[i] += h
+        minus[i] -= h
+        tip_plus = arm_glue.reference_tip(spec, plus * rated)[0]
+        tip_minus = arm_glue.reference_tip(spec, minus * rated)[0]
+        central[:, i] = (tip_plus - tip_minus) / (2 * h)
+    np.testing.assert_allclose(solution.jacobian_m, central, atol=0.01 * np.abs(central).max())
+    assert np.linalg.svd(central, compute_uv=False)[-1] > 0.05  # weak, but not singular
+    _, success, error = controllers.run_episode(env, controllers.InverseStaticsController(env))
+    assert success and error < 0.01, error
+
+
 def test_controller_reaches_and_random_does_not():
     """Two bundle episodes and one arm episode (the 50-episode figures: bench/bench_suite.py)."""
     for domain, seeds, radius in (("bundle", (0, 1), 0.01), ("arm", (0,), 0.02)):

@@ -9,8 +9,9 @@ Model-based reach (:class:`InverseStaticsController`):
    length. These seed a bounded Gauss-Newton solve (Broyden updates) of the suite's statics
    (:func:`.arm_glue.reference_tip`: the domain's model at rest; the arm's own weight included; no payload: the controller does not know it) for pressure fractions
    ``u*`` whose rest tip is the target, with a small pull towards the seed that settles the
-   redundancy of a multi-section arm. The same solve gives the Jacobian ``J`` of the rest tip
-   with respect to the fractions.
+   redundancy of a multi-section arm. Finite differences at the solution give the Jacobian
+   ``J`` of the rest tip with respect to the fractions (the solve's Broyden estimate can be
+   wrong in a weak direction).
 2. **Feedback.** Each control step, with the tip error ``e`` (base frame) and its integral,
    ``u = u* + a J+ (kp e + ki int e dt)``, J+ the damped pseudo-inverse, the correction
    shortened (a <= 1) until u is inside [0, 1] (the integral stops growing while a < 1). The integral removes what the
@@ -107,15 +108,18 @@ def inverse_statics(
             spec, u * spec.max_pressure_Pa, payload_kg=payload_kg, warm=len(calls) > 1
         )[0]
 
+    def jacobian_at(u, x, step=1e-4):  # one-sided differences, inwards from the bounds
+        jacobian = np.empty((3, u.size))
+        for i in range(u.size):
+            h = step if u[i] + step <= 1.0 else -step
+            probe = u.copy()
+            probe[i] += h
+            jacobian[:, i] = (tip(probe) - x) / h
+        return jacobian
+
     u = np.clip(seed, 0.0, 1.0)
     x = tip(u)
-    step = 1e-4
-    jacobian = np.empty((3, u.size))
-    for i in range(u.size):  # one-sided differences, inwards from the bounds
-        h = step if u[i] + step <= 1.0 else -step
-        probe = u.copy()
-        probe[i] += h
-        jacobian[:, i] = (tip(probe) - x) / h
+    jacobian = jacobian_at(u, x)
     mu = regularisation**2
     identity = np.eye(u.size)
     for _ in range(max_iterations):
@@ -131,7 +135,10 @@ def inverse_statics(
         # Broyden: the Jacobian takes the step's observed change
         jacobian += np.outer((x_new - x) - jacobian @ delta, delta) / (delta @ delta)
         u, x = u_new, x_new
-    return InverseStatics(u, jacobian, x, seed, len(calls))
+    # the feedback's Jacobian measured at the solution: the Broyden estimate is only good along
+    # the steps taken, and a weak direction can come out with the wrong sign (the feedback
+    # then drove bundle-reach seed 18 away from its target: 201 mm off at the end)
+    return InverseStatics(u, jacobian_at(u, x), x, seed, len(calls))
 
 
 def damped_pinv(jacobian, damping: float = 1e-3) -> np.ndarray:
