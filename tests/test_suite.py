@@ -254,3 +254,33 @@ def test_an_unstable_state_raises_physics_error_or_logs_when_suppressed():
     env.reset()
     physics.step(100)  # a sound state steps without complaint
     assert physics.data.warning.number.sum() == 0
+
+
+def test_long_tail_tolerance_is_dm_controls():
+    """The tasks' reward function gives dm_control's ``tolerance(..., sigmoid="long_tail")``
+    values: inside, on and outside the bounds, both sides, zero and wide margins, NaN."""
+    from dm_control.utils import rewards
+
+    from efam_mujoco.suite.tasks import long_tail_tolerance
+
+    random = np.random.RandomState(0)
+    cases = [
+        (0.0, (0.0, 0.01), 0.1),
+        (0.01, (0.0, 0.01), 0.1),
+        (0.02, (0.0, 0.01), 0.0),
+        (5.0, (1.0, 1.0), 2.0),
+    ]
+    for _ in range(2000):
+        lower = random.uniform(-1, 1)
+        upper = lower + random.choice([0.0, random.uniform(0, 1)])
+        margin = random.choice([0.0, random.uniform(1e-3, 3)])
+        cases.append((random.uniform(-3, 3), (lower, upper), margin))
+    for x, bounds, margin in cases:
+        expected = rewards.tolerance(x, bounds=bounds, margin=margin, sigmoid="long_tail")
+        assert long_tail_tolerance(x, bounds, margin) == pytest.approx(expected, rel=1e-14, abs=1e-15)
+    assert np.isnan(rewards.tolerance(np.nan, bounds=(0, 1), margin=1, sigmoid="long_tail"))
+    assert np.isnan(long_tail_tolerance(np.nan, (0, 1), 1))
+    with pytest.raises(ValueError):
+        long_tail_tolerance(0.0, (1.0, 0.0), 1.0)
+    with pytest.raises(ValueError):
+        long_tail_tolerance(0.0, (0.0, 1.0), -1.0)

@@ -224,12 +224,10 @@ class _Layout:
         self.base = names.index("base")
         # per section: the bodies along its backbone, its base plate first
         self.sections = [np.array([names.index(n) for n in chain]) for chain in _section_chains(names)]
-        # the whole backbone (base, then every disk) and each section's span of it
-        self.backbone = np.concatenate([self.sections[0][:1]] + [chain[1:] for chain in self.sections])
-        ends = np.cumsum([len(chain) - 1 for chain in self.sections])
-        self.backbone_spans = list(zip(np.concatenate([[0], ends[:-1]]).tolist(), ends.tolist()))
-        self.section_base = np.array([chain[0] for chain in self.sections])
-        self.section_end = np.array([chain[-1] for chain in self.sections])
+        # per section, as plain ints for the per-step accessors: its (base, end plate) bodies,
+        # and its backbone bodies (its base plate, then its disks)
+        self.section_ends = [(int(chain[0]), int(chain[-1])) for chain in self.sections]
+        self.backbone_chains = [chain.tolist() for chain in self.sections]
         sensor = lambda n: int(model.sensor_adr[model.name2id(n, "sensor")])
         self.tip_pos = sensor("tip_pos")
         self.tip_vel = sensor("tip_vel")
@@ -263,6 +261,8 @@ class _Views:
     def __init__(self, data):
         raw = data.ptr
         self.owner = data  # the dm_control wrapper these views belong to
+        self.data_ptr, self.model_ptr = raw, data.model.ptr
+        self.warnings = raw.warning.number  # MuJoCo's warning counters
         for name in (
             "sensordata",
             "xpos",
@@ -293,13 +293,13 @@ class EfamPhysics(mujoco.Physics):
         is reported by dm_control's own check (``PhysicsError``, or a log line inside
         ``suppress_physics_errors``), as in ``Physics.step``; the counters are compared here
         first because that check's context manager costs about 1 % of a bundle control step."""
-        counts = self._warnings  # a view of data.warning.number, kept by dm_control
-        before = counts.copy()
-        data = self._data
-        mj.mj_step(data.model.ptr, data.ptr, nstep)
-        if (counts > before).any():
+        views = self.views
+        counts = views.warnings
+        before = counts.tobytes()  # the cheapest snapshot: two method calls per step in all
+        mj.mj_step(views.model_ptr, views.data_ptr, nstep)
+        if counts.tobytes() != before:  # counters only grow during a step
             after = counts.copy()
-            counts[:] = before
+            counts[:] = np.frombuffer(before, dtype=counts.dtype)
             with self.check_invalid_state():  # raises or logs with dm_control's message
                 counts[:] = after
 
@@ -404,10 +404,11 @@ class EfamPhysics(mujoco.Physics):
         """Per section, the bend as a vector theta (cos phi, sin phi) in its base plate's frame
         (rad): theta the angle between the base and end plate axes, phi the direction the end
         plate's axis leans towards."""
-        layout, xmat = self.layout, self.views.xmat
-        out = np.zeros((len(layout.sections), 2))
-        for j, (b, e) in enumerate(zip(layout.section_base, layout.section_end)):
-            R0, R1 = xmat[b].tolist(), xmat[e].tolist()  # row-major 3x3 (floats: faster arithmetic)
+        layout = self.layout
+        xmat = self.views.xmat.tolist()  # every body's row-major 3x3, as floats: one numpy call
+        out = [(0.0, 0.0)] * len(layout.section_ends)
+        for j, (b, e) in enumerate(layout.section_ends):
+            R0, R1 = xmat[b], xmat[e]
             # the end plate's axis (third column of R1) in the base plate's frame (R0^T z1)
             vx = R0[0] * R1[2] + R0[3] * R1[5] + R0[6] * R1[8]
             vy = R0[1] * R1[2] + R0[4] * R1[5] + R0[7] * R1[8]
@@ -416,15 +417,21 @@ class EfamPhysics(mujoco.Physics):
             if lateral > 1e-12:
                 scale = math.atan2(lateral, vz) / lateral
                 out[j] = (vx * scale, vy * scale)
-        return out
+        return np.array(out)
 
     def section_lengths(self) -> np.ndarray:
         """Per section, the backbone length: the polyline through its plates' centres, m."""
-        layout = self.layout
-        points = self.views.xpos[layout.backbone].tolist()  # floats: faster than numpy this small
-        return np.array(
-            [sum(map(math.dist, points[a:b], points[a + 1 : b + 1])) for a, b in layout.backbone_spans]
-        )
+        return np.array(self.section_length_values())
+
+    def section_length_values(self) -> list[float]:
+        """:meth:`section_lengths` as a list of floats (the per-step rewards' form: every numpy
+        call costs microseconds after a control step's physics)."""
+        xpos = self.views.xpos.tolist()
+        lengths = []
+        for chain in self.layout.backbone_chains:
+            points = [xpos[i] for i in chain]
+            lengths.append(sum(map(math.dist, points[:-1], points[1:])))
+        return lengths
 
     # -- muscles
     def rated_pressures_Pa(self) -> np.ndarray:
