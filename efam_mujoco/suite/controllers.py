@@ -175,6 +175,9 @@ class InverseStaticsController:
     """Model-based tip control: inverse statics of the reference plus PI feedback (module doc).
 
     Works on the tasks whose observation has ``target_position`` (reach, reach_payload, track).
+    It is built for a fixed target: on ``track`` the feed-forward is the loop's starting point
+    and the feedback lags the moving target (bundle-track seeds 0-5: 1 of 6 within the radius
+    at the end, 1-84 mm; docs/suite.md).
     """
 
     name = "inverse statics + PI"
