@@ -20,6 +20,7 @@ right answer).
 
 Usage: python bench/bench_diagnose.py [--per-family 76] [--seed 40000] [--jobs 2]
        python bench/bench_diagnose.py --calibrate   (fits confidence.Calibration on its own seeds)
+       python bench/bench_diagnose.py --speed --seed 89000   (30 000-sample recordings, one per family)
 Writes bench/results/diagnose.json (or diagnose_calibration.json) and docs/figures/diagnose_*.png.
 """
 
@@ -356,6 +357,33 @@ def run(cases, jobs: int, try_next: bool, log: Path | None = None) -> list[dict]
     return sorted(rows, key=lambda r: r["seed"])
 
 
+def speed(seed: int, samples: int = 30000) -> dict:
+    """The speed line: a case's protocol re-recorded by its truth model at the rate that gives
+    ``samples`` samples (trimmed to exactly that many), diagnosed on one core (with the next
+    experiment, as a user would run it)."""
+    pin_one_core()
+    out = []
+    for family in V.FAMILIES:
+        case = V.draw_case(seed, family, "single")
+        first = V.make(case)
+        duration = float(first.time_s[-1] - first.time_s[0])
+        extra = V.run_plan(case, first.time_s - first.time_s[0], first.length_m, first.pressure_Pa,
+                           1.06 * samples / duration, seed)  # fmt: skip
+        keep = np.arange(min(samples, len(extra)))
+        recording = extra.subset(keep)
+        nominal = load_muscle(case.base_name)
+        t0 = time.perf_counter()
+        d = diagnose([recording], nominal)
+        seconds = time.perf_counter() - t0
+        out.append({"family": family, "seed": seed, "samples": len(recording), "seconds": seconds,
+                    "answer": d.verdict.answer, "truth": case.names})  # fmt: skip
+        print(
+            f"{family:10s} {len(recording):6d} samples: {seconds:.1f} s (goal < {SPEED_GOAL_S:.0f} s)",
+            flush=True,
+        )
+    return {"cases": out, "seconds_max": max(r["seconds"] for r in out), "goal_s": SPEED_GOAL_S}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--per-family", type=int, default=76, help="recordings per protocol family (4 families)")
@@ -369,8 +397,16 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--summarise", metavar="LOG", help="summarise the rows of a (possibly cut short) run's log and stop"
     )
+    ap.add_argument(
+        "--speed", action="store_true", help="time 30 000-sample recordings (one per family) and stop"
+    )
     args = ap.parse_args(argv)
     start = time.perf_counter()
+    if args.speed:
+        result = speed(args.seed)
+        path = write_json_atomic(args.out or RESULTS.with_name("diagnose_speed.json"), result)
+        print(f"wrote {path}")
+        return 0
     if args.summarise:
         rows = sorted((json.loads(line) for line in Path(args.summarise).read_text().splitlines() if line.strip()),
                       key=lambda r: r["seed"])  # fmt: skip
