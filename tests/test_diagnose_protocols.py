@@ -9,11 +9,12 @@ import pytest
 from efam_mujoco import load_muscle
 from efam_mujoco.diagnose import diagnose
 from efam_mujoco.diagnose import virtual_bench as V
-from efam_mujoco.diagnose.confidence import OUTSIDE, block_sse, bootstrap, paired_z, verdict
-from efam_mujoco.diagnose.design import recommend
+from efam_mujoco.diagnose.confidence import OUTSIDE, block_sse, bootstrap, paired_log_z, paired_z, verdict
+from efam_mujoco.diagnose.design import candidates, recommend, unabsorbed
 from efam_mujoco.diagnose.effects import Context, EffectModel
 from efam_mujoco.diagnose.model import _deadband_hi
 from efam_mujoco.diagnose.segment import label
+from efam_mujoco.recordings import Recording
 
 
 def _labels(t, L, P, rest):
@@ -92,6 +93,59 @@ def test_paired_test_over_blocks_separates_a_real_difference_and_not_noise():
     # one model misses a slow structure of 0.5 x the noise: clearly separated, in its favour
     worse = a + 0.5 * np.sin(np.arange(n) / 40)
     assert paired_z(block_sse(worse, blocks), block_sse(a, blocks)) > 4
+
+
+def test_log_ratio_test_sees_an_advantage_concentrated_in_a_few_blocks():
+    # a drift-like model error: 20 x the noise's mean square in 3 of 40 blocks, 30 % more in the
+    # other 37; the model without it has the noise alone. The plain difference of squared errors
+    # is dominated by the 3 large blocks (its spread hides the rest); the per-block log-ratio
+    # counts the 40 blocks alike and sees that the second model is better in every one.
+    rng = np.random.default_rng(4)
+    n, blocks = 4000, np.repeat(np.arange(40), 100)
+    good = rng.normal(0, 1, n)
+    scale = np.where(np.isin(blocks, [3, 21, 35]), np.sqrt(20.0), np.sqrt(1.3))
+    bad = rng.normal(0, 1, n) * scale
+    sse_bad, sse_good = block_sse(bad, blocks), block_sse(good, blocks)
+    assert abs(paired_z(sse_bad, sse_good)) < 2.5  # three blocks carry the whole difference
+    # expected: mean log-ratio (37 x ln 1.3 + 3 x ln 20) / 40 = 0.47 over a standard error of
+    # about 0.72 / sqrt(40) = 0.11 (the 3 large blocks dominate the spread): z ~ 4
+    z_log = paired_log_z(sse_bad, sse_good)
+    assert z_log > 3 and z_log > 1.5 * abs(paired_z(sse_bad, sse_good))
+    assert paired_log_z(sse_good, sse_bad) == pytest.approx(-paired_log_z(sse_bad, sse_good))
+    # two models with the same error level: no separation
+    other = rng.normal(0, 1, n)
+    assert abs(paired_log_z(block_sse(other, blocks), sse_good)) < 3
+
+
+def test_a_difference_a_parameter_refit_makes_does_not_count_as_separation():
+    # two models that differ only by the muscle's own parameters (a braid angle / dead band step
+    # along the linearisation): whatever the raw difference, a re-fit takes it up; a friction
+    # term on top of the same muscle is not taken up
+    from efam_mujoco.diagnose.model import linearise
+
+    muscle = load_muscle("FAM1")
+    rest = muscle.rest_length_m
+    t = np.arange(0, 40, 0.02)
+    L = rest * (1.0 + 0.15 + 0.1 * np.sin(2 * np.pi * t / 10))
+    P = np.full_like(t, 300e3)
+    ctx = Context.from_recordings([Recording(t, L, P, muscle.push(P, L))], muscle)
+    lin = linearise(muscle, P, L, muscle)
+    shifted = EffectModel(lin.muscle_for(0.5 * np.ones(len(lin.keep))), [])
+    plain = EffectModel(muscle, [])
+    friction = EffectModel(muscle, [("friction", {"f0_N": 5.0, "f1_N_per_MPa": 10.0, "g0_N": 0.0,
+                                                  "g1_N_per_MPa": 0.0, "slip_strain": 0.005, "slip_kPa": 10.0})])  # fmt: skip
+
+    def absorb(P_, L_):
+        return linearise(muscle, P_, L_, muscle).J
+
+    for e in candidates(ctx, 0.01):
+        t_, L_, P_ = e.sampled()
+        raw = float(np.std(shifted.push(t_, L_, P_) - plain.push(t_, L_, P_)))
+        if raw > 0.5:
+            assert unabsorbed(shifted, plain, e, absorb) < 0.1 * raw
+        moved = unabsorbed(friction, plain, e)  # a strain friction shows where strokes reverse
+        if moved > 2.0:
+            assert unabsorbed(friction, plain, e, absorb) > 0.2 * moved
 
 
 def test_a_clean_file_is_not_doubted_when_the_correction_gains_one_percent():

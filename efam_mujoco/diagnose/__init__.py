@@ -235,7 +235,12 @@ def diagnose(
             )
             models[OUTSIDE] = Corrected(models[other], corr_other)
             models = {other: models[other], OUTSIDE: models[OUTSIDE]}
-        design = recommend(models, ctx, stroke_speed(ctx, labels), noise)
+
+        # a difference the re-fitted muscle's own parameters could make on the candidate separates nothing
+        def absorb(P, L):
+            return linearise(fitted.muscle, P, L, muscle, span=SPAN).J
+
+        design = recommend(models, ctx, stroke_speed(ctx, labels), noise, absorb=absorb)
 
     muscle_before, _ = _polish(recordings, base, lin, force, labels)
     predicted_before = muscle_before.push(ctx.P, ctx.L)

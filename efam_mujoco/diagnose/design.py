@@ -23,10 +23,15 @@ A test that never moved the length (isometric) gets the pressure-only candidates
 would ask both models where no data constrained them.
 * ``idle``: five minutes at a middle pressure between two strokes (drift).
 
-The score of a candidate is the RMS over it of the difference between the two models'
-predicted forces, less its mean (a constant difference a load-cell zero could take), against
-the noise floor; the recommended one has the largest score. The recommendation states the
-predicted difference in newtons, its peak, and the noise floor.
+The score of a candidate is what of the difference between the two models' predicted forces the
+diagnosis could not take up another way once the new test is added: the difference less its
+least-squares projection on a constant (a load-cell zero) and, when ``absorb`` is given, on the
+model's own parameter corrections linearised over the candidate (``model.linearise``: a
+difference a re-fit of the braid angle or dead band reproduces separates nothing). Its expected
+evidence is the chi-square it adds, ``n (rms_left / noise)^2`` over the candidate's ``n`` samples
+at the rate it will be recorded, and the recommended candidate has the largest. The
+recommendation states the predicted difference in newtons (raw, and what is left after the
+projection), its peak, and the noise floor.
 """
 
 from __future__ import annotations
@@ -211,19 +216,45 @@ def separation(a: EffectModel, b: EffectModel, experiment: Experiment) -> tuple[
     return float(np.sqrt(np.mean(d * d))), float(np.max(np.abs(d)))
 
 
-def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_N: float) -> dict:
-    """The candidate experiment that best separates the two models in ``models``."""
+def unabsorbed(a: EffectModel, b: EffectModel, experiment: Experiment, absorb=None) -> float:
+    """RMS (N) of the two models' predicted force difference over ``experiment`` left after its
+    least-squares projection on a constant and on ``absorb(P, L)`` (columns: force changes the
+    model's own parameter corrections can make there), i.e. what no re-fit could take up."""
+    t, L, P = experiment.sampled()
+    d = a.push(t, L, P) - b.push(t, L, P)
+    cols = [np.ones_like(d)]
+    if absorb is not None:
+        J = np.asarray(absorb(P, L), float)
+        if J.ndim == 2 and J.shape[1]:
+            cols.append(J)
+    A = np.column_stack(cols)
+    scale = np.sqrt(np.mean(A * A, axis=0)) + 1e-300
+    coef, *_ = np.linalg.lstsq(A / scale, d, rcond=None)
+    left = d - (A / scale) @ coef
+    return float(np.sqrt(np.mean(left * left)))
+
+
+def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_N: float,
+              absorb=None, sample_hz: float = SAMPLE_HZ) -> dict:  # fmt: skip
+    """The candidate experiment that best separates the two models in ``models``: the largest
+    expected chi-square of the difference no re-fit could take up (``unabsorbed``; ``absorb(P,
+    L)`` gives the model's parameter-correction columns over a candidate, None: a constant only),
+    with the candidate recorded at ``sample_hz``."""
     (na, a), (nb, b) = list(models.items())[:2]
     scored = []
     for e in candidates(ctx, speed):
         try:
             rms, peak = separation(a, b, e)
+            left = unabsorbed(a, b, e, absorb)
         except ValueError:
             continue
+        n = float(e.t[-1]) * sample_hz
+        chi2 = n * (left / max(noise_N, 1e-9)) ** 2
         scored.append({"name": e.name, "protocol": e.words, "predicted_difference_rms_N": rms,
                        "predicted_difference_peak_N": peak, "ratio_to_noise": rms / max(noise_N, 1e-9),
+                       "unabsorbed_rms_N": left, "expected_chi2": chi2,
                        "duration_s": float(e.t[-1])})  # fmt: skip
-    scored.sort(key=lambda s: -s["predicted_difference_rms_N"])
+    scored.sort(key=lambda s: -s["expected_chi2"])
     best = scored[0] if scored else None
     words = ""
     if best and best["ratio_to_noise"] < 1.0:
@@ -236,7 +267,8 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
         words = (
             f"Next experiment to separate {na} and {nb}: {best['name']} ({best['protocol']}); the two fitted "
             f"models predict forces differing by {best['predicted_difference_rms_N']:.2f} N RMS (peak "
-            f"{best['predicted_difference_peak_N']:.2f} N) against a noise floor of {noise_N:.2f} N."
+            f"{best['predicted_difference_peak_N']:.2f} N; {best['unabsorbed_rms_N']:.2f} N RMS that no re-fit "
+            f"of the model's parameters could take up) against a noise floor of {noise_N:.2f} N."
         )
     return {"contenders": [na, nb], "recommended": best, "candidates": scored, "words": words}
 

@@ -646,6 +646,27 @@ def identifiable(case: Case, recording: Recording, nominal, share: float = 0.25)
     return left >= share * case.noise_N, left
 
 
+def left_after_baseline(case: Case, recording: Recording, nominal) -> float:
+    """RMS (N) of the noise-free truth force left by the diagnosis's own no-effect model: the
+    re-fit (``model.refit``) followed by the linearised corrections of the model's parameters and
+    the input-noise column that every hypothesis is fitted with (``select.Engine.baseline``), on
+    all samples. A second, stricter reading of "the model's own parameters reproduce it" than
+    :func:`identifiable` (which stops after the re-fit); reported beside it, not scored."""
+    from . import SPAN
+    from .effects import Context
+    from .model import linearise, refit
+    from .segment import label
+    from .select import Engine
+
+    truth = Recording(recording.time_s, recording.length_m, recording.pressure_Pa, case.true_force_N)
+    fitted = refit(nominal, [truth])
+    ctx = Context.from_recordings([truth], fitted.muscle)
+    labels = label(ctx.t, ctx.x, ctx.P, ctx.starts)
+    lin = linearise(fitted.muscle, ctx.P, ctx.L, nominal, span=SPAN)
+    base = Engine(ctx, lin, np.asarray(case.true_force_N, float), labels).candidate([], [], folds=False)
+    return float(np.sqrt(base.rss / ctx.n))
+
+
 def run_plan(case: Case, t, L, P_set, sample_hz: float, seed: int) -> Recording:
     """The truth's recording of an arbitrary program (e.g. a recommended next experiment): the
     same muscle and effect forms; the effects' parameters redrawn from the case's own stream, so
