@@ -64,7 +64,8 @@ def fit(
         for g in p.grid:
             u = u0.copy()
             u[i] = p.to_unit(g)
-            starts.append(u)
+            if not any(np.allclose(u, s, rtol=0, atol=1e-12) for s in starts):  # a grid value at the start
+                starts.append(u)
     tips = replayer.tips([make(values(u)) for u in starts])
     sse = np.array([np.sum(residual(t, measured, train) ** 2) for t in tips])
     best = int(np.argmin(sse))
