@@ -362,3 +362,15 @@ def test_head_replay_is_the_start_of_the_full_replay(spec):
     assert len(head.time_s) < len(rec.time_s) and full.head(60.0) is full
     knobs = with_values(full.nominal, gain=(0.9, 1.0, 1.05), lag_s=(0.05, 0.1, 0.2))
     np.testing.assert_array_equal(head.tips([knobs])[0], full.tips([knobs])[0][: len(head.time_s)])
+
+
+def test_paired_comparison_never_separates_identical_predictions():
+    """Two hypotheses that replay the same tip (an effect fitted to nothing) are not told apart,
+    whatever the data: t = 0, never a sure difference."""
+    from efam_mujoco.armdiag.diagnosis import paired_comparison
+
+    rng = np.random.default_rng(13)
+    n = 300
+    tip = rng.normal(size=(n, 3)) * 1e-3
+    p = paired_comparison(tip, tip.copy(), np.zeros((n, 3)), np.ones(n, bool))
+    assert p["t"] == 0.0 and p["t"] < p["critical_t"]

@@ -55,8 +55,8 @@ SCREEN_S = 30.0
 #: the runner-up is told apart from the best when its per-segment log error ratio is positive at
 #: this one-sided level (Student t)
 SEGMENTS_MIN, SEGMENTS_MAX = 8, 32
-SEGMENT_CORRELATIONS = 1.0
-SEGMENT_LAG1_WEIGHT = 1.0
+#: t reported when every segment gives the same nonzero log ratio (finite, for JSON)
+T_SURE = 1e6
 PAIRED_LEVEL = 0.95
 #: probabilities are exp(score / T) normalised: T fitted (maximum likelihood of the concealed truth)
 #: on 9 calibration recordings, seeds 71000+, disjoint from the benchmark's evaluation seeds
@@ -348,7 +348,7 @@ def paired_comparison(tip_a, tip_b, measured, held) -> dict:
     rows = np.flatnonzero(held)
     err_a = np.sum((tip_a[rows] - measured[rows]) ** 2, axis=1)
     err_b = np.sum((tip_b[rows] - measured[rows]) ** 2, axis=1)
-    corr = SEGMENT_CORRELATIONS * max(
+    corr = max(
         _correlation_length(tip_a[rows] - measured[rows]),
         _correlation_length(tip_b[rows] - measured[rows]),
         _correlation_length((err_b - err_a)[:, None]),
@@ -366,9 +366,12 @@ def paired_comparison(tip_a, tip_b, measured, held) -> dict:
         break
     # the variance of the mean with the segments' remaining lag-1 correlation (only ever
     # widened: a chance negative correlation does not narrow it)
-    spread = float(np.std(stat, ddof=1)) * math.sqrt(1 + 2 * max(0.0, lag1) * SEGMENT_LAG1_WEIGHT)
+    spread = float(np.std(stat, ddof=1)) * math.sqrt(1 + 2 * max(0.0, lag1))
     mean = float(np.mean(stat))
-    t = mean / (spread / math.sqrt(segments)) if spread > 0 else math.copysign(math.inf, mean or 1.0)
+    if spread > 0:
+        t = mean / (spread / math.sqrt(segments))
+    else:  # the same error ratio in every segment: identical predictions (0), or a sure difference
+        t = 0.0 if mean == 0 else math.copysign(T_SURE, mean)
     return {
         "segments": segments, "t": float(t), "critical_t": float(student.ppf(PAIRED_LEVEL, segments - 1)),
         "worse_in_segments": int(np.sum(stat > 0)), "loss_correlation_rows": corr, "lag1": lag1,
