@@ -206,6 +206,48 @@ def timing_case(spec, seed) -> dict:
     }  # fmt: skip
 
 
+def discretisation_case(seed, duration_s=20.0) -> dict:
+    """How far the timing case's coarse arm (D = 2 disks per section, 4 ms) is from the
+    builder's default (D = 8, its own step) under the same lab commands (the random protocol,
+    3 sections hanging, no effect): tip RMS per 5 s block between the replays, and the CPU cost
+    of one simulated second of each, side by side in this process."""
+    rng = np.random.default_rng(seed)
+
+    def spec(disks, timestep_s):
+        return arm.build_spec(arm.ArmSpec(sections=(arm.paper_section(disks=disks),) * 3, orientation="hanging",
+                                          timestep_s=timestep_s, name="arm_3x3"))  # fmt: skip
+
+    rec = make_recording(spec(2, 4e-3), synth_none(), "random", rng, duration_s=duration_s, rate_Hz=100.0)
+    variants = {"D=2, 4 ms": (2, 4e-3), "D=4, 4 ms": (4, 4e-3), "D=8, builder's step": (8, None)}
+    tips, cost = {}, {}
+    for name, (disks, dt) in variants.items():
+        replayer = Replayer(spec(disks, dt), rec.time_s, rec.command_Pa, threads=1)
+        clock = time.process_time()
+        tips[name] = replayer.tips([replayer.nominal])[0]
+        cost[name] = (time.process_time() - clock) / (duration_s + replayer.settle_s)
+    ref = tips["D=8, builder's step"]
+    edges = np.arange(0.0, duration_s + 1e-9, 5.0)
+    out = {
+        "protocol": "random",
+        "duration_s": duration_s,
+        "cpu_s_per_simulated_s": cost,
+        "tip_rms_vs_default_m": {},
+    }
+    for name, tip in tips.items():
+        err = np.linalg.norm(tip - ref, axis=1)
+        out["tip_rms_vs_default_m"][name] = [
+            float(np.sqrt(np.mean(err[(rec.time_s >= a) & (rec.time_s < b)] ** 2))) for a, b in zip(edges[:-1], edges[1:])
+        ]  # fmt: skip
+    return out
+
+
+def synth_none():
+    """The concealed truth 'none' (no effect)."""
+    from efam_mujoco.armdiag.synth import Truth
+
+    return Truth("none")
+
+
 def confusion_figure(matrix, path):
     import matplotlib
 
@@ -284,7 +326,17 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--timing-json", type=Path, help="take the timing case from this JSON (measured by an earlier run)"
     )
+    parser.add_argument(
+        "--discretisation",
+        type=Path,
+        help="only compare the timing arm's D = 2 with the default D = 8; JSON here",
+    )
     args = parser.parse_args(argv)
+    if args.discretisation:
+        result = discretisation_case(args.seed + 6000)
+        write_json_atomic(args.discretisation, result)
+        print(result)
+        return 0
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
     started = time.perf_counter()
     evaluation = plan_cases(args.seed, args.reps, args.reps_2)
