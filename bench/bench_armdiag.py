@@ -6,10 +6,13 @@ protocol (steps, ramps, sinusoids, random sequences, a closed-loop tip controlle
 tip at 30-200 Hz with 0.2-1 mm marker noise and dropouts in bursts. The diagnosis sees only the
 recording and the nominal arm model.
 
-Arms (the physical, segmented arm; few disks for speed, the default is 16): 1 section of 3 FAM1
-muscles upright (4 disks) and 2 sections hanging (2 disks per section),
-both at a 4 ms timestep; the timing case is a 3-section hanging arm (2 disks per section), 60 s at
-100 Hz, on one thread, CPU time of this process.
+Arms (the physical, segmented arm with the exact arc geometry of its segments; few disks for
+speed, the builder's default is 8 per section at a 1 ms step): 1 section of 3 FAM1 muscles
+upright (4 disks) and 2 sections hanging (2 disks per section), both at a 4 ms time step (stable
+at the arm's damping, limit about 9 ms; the builder warns that it is within less than its 2x
+margin); the timing case is a 3-section hanging arm (2 disks per section, 4 ms), 60 s at 100 Hz,
+on one thread, CPU time of this process. At the default D = 8 and 1 ms one replay of that
+recording costs about 60 times more (0.29 s CPU per simulated second against 0.005 s).
 
 Calibration first: the probability temperature T and P(none) at the noise floor are fitted on
 calibration cases whose seeds (``--cal-seed``) are disjoint from the evaluation's (``--seed``),
@@ -194,11 +197,55 @@ def timing_case(spec, seed) -> dict:
     wall = time.perf_counter()
     d = diagnose_arm(spec, rec, threads=1)
     return {
-        "arm": "3 sections x 3 FAM1 muscles, hanging, D = 2 disks per section, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
+        "arm": "3 sections x 3 FAM1 muscles, hanging, D = 2 disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
         "seconds_cpu_one_thread": d.seconds, "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
+        "simulated_s": d.decisions["simulated_s"], "heldout_rms_nominal_m": d.heldout_rms_nominal_m,
+        "heldout_rms_refit_m": d.heldout_rms_before_m, "noise_m": d.noise_m,
         "truth": truth.name, "truth_muscle": truth.muscle, "answer": d.verdict["answer"],
         "muscle": d.effects[0]["muscle"] if d.effects else None, "heldout_rms_after_m": d.heldout_rms_after_m,
     }  # fmt: skip
+
+
+def discretisation_case(seed, duration_s=20.0) -> dict:
+    """How far the timing case's coarse arm (D = 2 disks per section, 4 ms) is from the
+    builder's default (D = 8, its own step) under the same lab commands (the random protocol,
+    3 sections hanging, no effect): tip RMS per 5 s block between the replays, and the CPU cost
+    of one simulated second of each, side by side in this process."""
+    rng = np.random.default_rng(seed)
+
+    def spec(disks, timestep_s):
+        return arm.build_spec(arm.ArmSpec(sections=(arm.paper_section(disks=disks),) * 3, orientation="hanging",
+                                          timestep_s=timestep_s, name="arm_3x3"))  # fmt: skip
+
+    rec = make_recording(spec(2, 4e-3), synth_none(), "random", rng, duration_s=duration_s, rate_Hz=100.0)
+    variants = {"D=2, 4 ms": (2, 4e-3), "D=4, 4 ms": (4, 4e-3), "D=8, builder's step": (8, None)}
+    tips, cost = {}, {}
+    for name, (disks, dt) in variants.items():
+        replayer = Replayer(spec(disks, dt), rec.time_s, rec.command_Pa, threads=1)
+        clock = time.process_time()
+        tips[name] = replayer.tips([replayer.nominal])[0]
+        cost[name] = (time.process_time() - clock) / (duration_s + replayer.settle_s)
+    ref = tips["D=8, builder's step"]
+    edges = np.arange(0.0, duration_s + 1e-9, 5.0)
+    out = {
+        "protocol": "random",
+        "duration_s": duration_s,
+        "cpu_s_per_simulated_s": cost,
+        "tip_rms_vs_default_m": {},
+    }
+    for name, tip in tips.items():
+        err = np.linalg.norm(tip - ref, axis=1)
+        out["tip_rms_vs_default_m"][name] = [
+            float(np.sqrt(np.mean(err[(rec.time_s >= a) & (rec.time_s < b)] ** 2))) for a, b in zip(edges[:-1], edges[1:])
+        ]  # fmt: skip
+    return out
+
+
+def synth_none():
+    """The concealed truth 'none' (no effect)."""
+    from efam_mujoco.armdiag.synth import Truth
+
+    return Truth("none")
 
 
 def confusion_figure(matrix, path):
@@ -279,7 +326,17 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--timing-json", type=Path, help="take the timing case from this JSON (measured by an earlier run)"
     )
+    parser.add_argument(
+        "--discretisation",
+        type=Path,
+        help="only compare the timing arm's D = 2 with the default D = 8; JSON here",
+    )
     args = parser.parse_args(argv)
+    if args.discretisation:
+        result = discretisation_case(args.seed + 6000)
+        write_json_atomic(args.discretisation, result)
+        print(result)
+        return 0
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
     started = time.perf_counter()
     evaluation = plan_cases(args.seed, args.reps, args.reps_2)

@@ -4,17 +4,20 @@
    (they touch no fit, no noise estimate, no choice of start values). Rows with a marker dropout
    are in neither.
 2. **Re-fit** what the model already has, within calibration bounds (``effects.refit_params``).
-3. **Effects.** Every library effect is fitted on top of the re-fit on the training blocks;
-   per-muscle effects are screened on their start grid for every muscle, the best muscle is then
-   fitted.
+3. **Effects.** Every library effect is fitted on top of the re-fit on the training blocks
+   (start grid and one local step; the four with the smallest training error then get the rest
+   of the local search);
+   per-muscle effects are screened on their start grid for every muscle (on the first
+   :data:`SCREEN_S` of the recording), the best muscle is then fitted on every training row.
 4. **Choice.** Each hypothesis h (``none`` = the re-fit alone) gets a held-out score
    ``-n_eff/2 log SSE_h - k_h/2 log n_eff`` (k_h: its parameters, plus the log of the number of
    ways to place it: muscles, or muscle pairs; n_eff: held-out samples divided by the residual's
    correlation length); probabilities are ``exp(score / T)`` normalised, T calibrated on seeds
    disjoint from the benchmark's. A model that already reproduces the held-out blocks within
    1.25 x the marker noise needs no effect.
-5. **Ambiguity** is a paired held-out comparison: the held-out rows cut into contiguous segments,
-   the runner-up's per-segment excess error over the best's, a one-sided Student t; ambiguous
+5. **Ambiguity** is a paired held-out comparison (:func:`paired_comparison`): the held-out rows
+   cut into contiguous segments of at least the loss difference's correlation length, the
+   runner-up's per-segment log error ratio over the best's, a one-sided Student t; ambiguous
    when the runner-up is not worse at the 95 % level (or, with ``none`` first, when it is better
    at that level); confident when the probability is >= 0.8 and it is not ambiguous.
 6. **Next experiment** for every ambiguous answer (``design.recommend``).
@@ -40,18 +43,28 @@ HELD_OUT_BLOCKS = (1, 4)
 CONFIDENT = 0.8
 NOISE_MARGIN = 1.25
 ITERATIONS = 3
-#: the paired held-out comparison: held-out rows cut into contiguous segments (about one residual
-#: correlation length each, between these counts); the runner-up is told apart from the best when
-#: its per-segment excess error is positive at this one-sided level (Student t)
-SEGMENTS_MIN, SEGMENTS_MAX = 8, 16
+#: every effect gets its start grid and FIRST_ITERATIONS local steps; the FULLY_FITTED effects
+#: with the smallest training error get the rest of the ITERATIONS
+FIRST_ITERATIONS = 1
+FULLY_FITTED = 4
+#: per-muscle and per-pair options are screened on the recording's first SCREEN_S seconds (the
+#: whole recording when shorter): three of the six folds, two of them training blocks, at 60 s
+SCREEN_S = 30.0
+#: the paired held-out comparison (:func:`paired_comparison`): held-out rows cut into contiguous
+#: segments (at least one correlation length of the loss difference each, between these counts);
+#: the runner-up is told apart from the best when its per-segment log error ratio is positive at
+#: this one-sided level (Student t)
+SEGMENTS_MIN, SEGMENTS_MAX = 8, 32
+#: t reported when every segment gives the same nonzero log ratio (finite, for JSON)
+T_SURE = 1e6
 PAIRED_LEVEL = 0.95
 #: probabilities are exp(score / T) normalised: T fitted (maximum likelihood of the concealed truth)
-#: on 9 calibration recordings, seeds 71000+, disjoint from the benchmark's evaluation seeds
-#: (``python bench/bench_armdiag.py``, "calibration" in bench/results/armdiag.json)
-PROBABILITY_TEMPERATURE = 3.63
+#: on 18 calibration recordings (9 per bench arm), seeds 73000+, disjoint from the benchmark's
+#: evaluation seeds (``python bench/bench_armdiag.py``, "calibration" in bench/results/armdiag.json)
+PROBABILITY_TEMPERATURE = 9.54
 #: P(none is right) when the re-fitted model is already at the noise floor (same calibration set:
-#: 1 of 1 at-floor recordings was clean, Laplace-smoothed (1 + 1) / (1 + 2))
-P_NONE_AT_FLOOR = 0.667
+#: 2 of 2 at-floor recordings were clean, Laplace-smoothed (2 + 1) / (2 + 2))
+P_NONE_AT_FLOOR = 0.75
 
 
 @dataclass
@@ -84,6 +97,7 @@ class ArmDiagnosis:
     tip_before: np.ndarray = field(repr=False, default=None)
     tip_after: np.ndarray = field(repr=False, default=None)
     heldout: np.ndarray = field(repr=False, default=None)
+    candidate_tips: dict = field(repr=False, default=None)  # hypothesis -> replayed tip (samples, 3)
 
     @property
     def names(self) -> list[str]:
@@ -175,8 +189,18 @@ def diagnose_arm(
     library = [e for e in LIBRARY if effects is None or e.name in effects]
     fits: dict[str, tuple[FitResult, int | None]] = {}
     directions: dict[str, np.ndarray] = {}
-    for effect in library:
+    for effect in library:  # every effect: its start grid and a first local step
         fits[effect.name] = _fit_effect(effect, replayer, base, nominal, measured, train, M, directions)
+    # the rest of the local search only for the effects that fit the training rows best: a term
+    # far behind after its grid and first step is not the answer, and the comparison that
+    # matters (the best against the runner-up) is between fully fitted hypotheses
+    leaders = sorted(fits, key=lambda n: fits[n][0].sse_train)[:FULLY_FITTED]
+    for name in leaders:
+        f, option = fits[name]
+        effect = get(name)
+        more = fit(replayer, effect.params, _maker(effect, nominal, option), measured, train,
+                   shared=base, iterations=ITERATIONS - FIRST_ITERATIONS, resume=f)  # fmt: skip
+        fits[name] = (more, option)
     # 4. the choice
     sse_held = {"none": float(np.sum((base.tip[held] - measured[held]) ** 2))}
     for name, (f, _) in fits.items():
@@ -197,19 +221,18 @@ def diagnose_arm(
     prob = probabilities(score)
     heldout_none = math.sqrt(sse_held["none"] / n_held)
     tips_of = {"none": base.tip} | {n: f.tip for n, (f, _) in fits.items()}
-    segments = max(SEGMENTS_MIN, min(SEGMENTS_MAX, int(held.sum() // max(2.0, corr_len))))
     best_effect = max((n for n in score if n != "none"), key=score.get, default=None)
     # at the noise floor: none, unless the best effect is better on the held-out segments (paired)
     at_floor = heldout_none <= NOISE_MARGIN * noise
     if at_floor and best_effect is not None and score[best_effect] > score["none"]:
-        vs_none = paired_comparison(tips_of[best_effect], base.tip, measured, held, segments)
+        vs_none = paired_comparison(tips_of[best_effect], base.tip, measured, held)
         at_floor = vs_none["t"] < vs_none["critical_t"]
     if at_floor:
         rest = (1 - P_NONE_AT_FLOOR) / max(1, len(prob) - 1)
         prob = {"none": P_NONE_AT_FLOOR} | {k: rest for k in prob if k != "none"}
     ranked = list(prob)
     first, second = ranked[0], ranked[1]
-    paired = paired_comparison(tips_of[first], tips_of[second], measured, held, segments)
+    paired = paired_comparison(tips_of[first], tips_of[second], measured, held)
     if first == "none":  # nothing pays for its parameters: ambiguous only if the runner-up is clearly better
         ambiguous = not at_floor and paired["t"] < -paired["critical_t"]
     else:  # the runner-up (another effect, or none) is not clearly worse on the held-out segments
@@ -276,6 +299,7 @@ def diagnose_arm(
             "train_samples": int(train.sum()),
             "heldout_samples": int(held.sum()),
             "rollouts": replayer.rollouts,
+            "simulated_s": replayer.simulated_s,
             "unstable_variants": replayer.unstable,
             "mujoco_warnings_caught": replayer.warnings,
         },  # fmt: skip
@@ -294,6 +318,7 @@ def diagnose_arm(
         tip_before=base.tip,
         tip_after=after.tip,
         heldout=held,
+        candidate_tips=tips_of,
     )
 
 
@@ -306,25 +331,51 @@ def probabilities(score: dict, temperature: float | None = None) -> dict:
     return {k: w / total for k, w in sorted(weights.items(), key=lambda kv: -kv[1])}
 
 
-def paired_comparison(tip_a, tip_b, measured, held, segments: int) -> dict:
-    """Held-out rows cut into ``segments`` contiguous pieces; per piece the excess squared tip
-    error of b over a; a one-sided Student t of its mean (t > critical_t: b is worse)."""
-    rows = np.flatnonzero(held)
-    excess = np.array([
-        float(np.sum((tip_b[r] - measured[r]) ** 2) - np.sum((tip_a[r] - measured[r]) ** 2))
-        for r in np.array_split(rows, segments)
-    ])  # fmt: skip
-    spread = float(np.std(excess, ddof=1))
-    t = (
-        float(np.mean(excess) / (spread / math.sqrt(segments)))
-        if spread > 0
-        else math.copysign(math.inf, np.mean(excess) or 1.0)
-    )
+def paired_comparison(tip_a, tip_b, measured, held) -> dict:
+    """Is b's held-out tip error larger than a's, beyond chance? A batch-means paired test.
+
+    The held-out rows are cut into contiguous segments of at least the correlation length of the
+    per-row loss difference ``|e_b|^2 - |e_a|^2`` (``1 + 2 sum rho``, so that segments are about
+    independent), between :data:`SEGMENTS_MIN` and :data:`SEGMENTS_MAX` of them; while the
+    segment statistics still correlate from one segment to the next (lag-1 autocorrelation above
+    its 95 % bound ``1.645 / sqrt(S)``), neighbouring segments are merged (S halved, not below
+    the minimum). Per segment the statistic is ``log(SSE_b / SSE_a)``: scale-free, so a few
+    segments where the arm moves fast (large errors for both) do not swamp the rest, as raw
+    excess errors do. One-sided Student t of its mean with S - 1 degrees of freedom
+    (t > critical_t: b is worse)."""
     from scipy.stats import t as student
 
+    rows = np.flatnonzero(held)
+    err_a = np.sum((tip_a[rows] - measured[rows]) ** 2, axis=1)
+    err_b = np.sum((tip_b[rows] - measured[rows]) ** 2, axis=1)
+    corr = max(
+        _correlation_length(tip_a[rows] - measured[rows]),
+        _correlation_length(tip_b[rows] - measured[rows]),
+        _correlation_length((err_b - err_a)[:, None]),
+    )
+    segments = int(np.clip(len(rows) // max(2.0, corr), SEGMENTS_MIN, SEGMENTS_MAX))
+    while True:
+        parts = np.array_split(np.arange(len(rows)), segments)
+        stat = np.array([math.log(max(err_b[p].sum(), 1e-300) / max(err_a[p].sum(), 1e-300)) for p in parts])
+        centred = stat - stat.mean()
+        var = float(centred @ centred)
+        lag1 = float(centred[:-1] @ centred[1:]) / var if var > 0 else 0.0
+        if lag1 > 1.645 / math.sqrt(segments) and segments // 2 >= SEGMENTS_MIN:
+            segments //= 2
+            continue
+        break
+    # the variance of the mean with the segments' remaining lag-1 correlation (only ever
+    # widened: a chance negative correlation does not narrow it)
+    spread = float(np.std(stat, ddof=1)) * math.sqrt(1 + 2 * max(0.0, lag1))
+    mean = float(np.mean(stat))
+    if spread > 0:
+        t = mean / (spread / math.sqrt(segments))
+    else:  # the same error ratio in every segment: identical predictions (0), or a sure difference
+        t = 0.0 if mean == 0 else math.copysign(T_SURE, mean)
     return {
-        "segments": segments, "t": t, "critical_t": float(student.ppf(PAIRED_LEVEL, segments - 1)),
-        "worse_in_segments": int(np.sum(excess > 0)),
+        "segments": segments, "t": float(t), "critical_t": float(student.ppf(PAIRED_LEVEL, segments - 1)),
+        "worse_in_segments": int(np.sum(stat > 0)), "loss_correlation_rows": corr, "lag1": lag1,
+        "mean_log_sse_ratio": mean,
     }  # fmt: skip
 
 
@@ -353,34 +404,54 @@ def _shared(name: str, values: dict) -> dict:
     return {k: float(v) for k, v in values.items() if k not in own}
 
 
+def _maker(effect, nominal: Knobs, option=None):
+    """Parameter values -> knobs: the re-fit's terms plus ``effect`` (on ``option``: a muscle
+    index or a (receiving, source) pair)."""
+    return lambda v: effect.knobs(refit_knobs(nominal, v), v, option)
+
+
 def _fit_effect(effect, replayer, base: FitResult, nominal: Knobs, measured, train, M, directions):
-    """(fit, muscle index or None) of one library effect, jointly with the re-fit's parameters."""
+    """(fit, muscle index or None) of one library effect, jointly with the re-fit's parameters:
+    its start grid (per-muscle effects: screened for every option) and :data:`FIRST_ITERATIONS`
+    local steps."""
 
     def maker(m=None):
-        return lambda v: effect.knobs(refit_knobs(nominal, v), v, m)
+        return _maker(effect, nominal, m)
 
     if not effect.per_muscle:
         return fit(
-            replayer, effect.params, maker(), measured, train, shared=base, iterations=ITERATIONS
+            replayer, effect.params, maker(), measured, train, shared=base, iterations=FIRST_ITERATIONS
         ), None
     if effect.per_pair:
         options = [(i, j) for g in replayer.groups for i in g for j in g if i != j]
     else:
         options = list(range(M)) + ([None] if effect.name == "pressure_lag" else [])
+    # the options are screened (start grid, no local search) on the recording's first SCREEN_S
+    # only: the screen ranks muscles, and the chosen one is then fitted on every training row
+    head = replayer.head(SCREEN_S)
+    n = len(head.time_s)
     screens = {
-        m: fit(replayer, effect.params, maker(m), measured, train, iterations=0, shared=base) for m in options
+        m: fit(head, effect.params, maker(m), measured[:n], train[:n], iterations=0, shared=base)
+        for m in options
     }
     # directions for locating: the tip's change when one muscle's pressure is scaled / delayed
+    # (over the screen window; NaN after it)
     kind = {"weak_muscle": "gain", "pressure_lag": "lag"}.get(effect.name)
     if kind:
         probe = {**base.values, **{p.key: p.start if p.start is not None else p.lo for p in effect.params}}
         probe[effect.params[0].key] = effect.params[0].grid[len(effect.params[0].grid) // 2]
-        tips = replayer.tips([maker(m)(probe) for m in range(M)])
+        tips = head.tips([maker(m)(probe) for m in range(M)])
         for m in range(M):
-            directions[f"{replayer.muscles[m]}:{kind}"] = tips[m] - base.tip
+            direction = np.full_like(base.tip, np.nan)
+            direction[:n] = tips[m] - base.tip[:n]
+            directions[f"{replayer.muscles[m]}:{kind}"] = direction
+    if head is not replayer:
+        replayer.rollouts += head.rollouts
+        replayer.simulated_s += head.simulated_s
+        replayer.unstable += head.unstable
+        replayer.warnings += head.warnings
     best = min(screens, key=lambda m: screens[m].sse_train)  # (an option may be a tuple: no min over keys)
     start = {p.key: screens[best].values[p.key] for p in effect.params}
-    f = fit(
-        replayer, effect.params, maker(best), measured, train, start=start, shared=base, iterations=ITERATIONS
-    )
+    f = fit(replayer, effect.params, maker(best), measured, train, start=start, shared=base,
+            iterations=FIRST_ITERATIONS, grid=False)  # fmt: skip
     return f, best

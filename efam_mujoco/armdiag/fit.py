@@ -48,9 +48,13 @@ def fit(
     iterations: int = 2,
     start: dict | None = None,
     shared: FitResult | None = None,
+    grid: bool = True,
+    resume: FitResult | None = None,
 ) -> FitResult:
     """Fit ``params`` (knobs made by ``make(values)``) to ``measured`` tip rows ``train``; with
-    ``shared``, its parameters are fitted too (from its values, with its Jacobian columns)."""
+    ``shared``, its parameters are fitted too (from its values, with its Jacobian columns).
+    ``grid=False``: from ``start`` alone (its start grid already searched elsewhere);
+    ``resume``: more iterations of an earlier fit of the same parameters (nothing re-rolled)."""
     own = len(params)
     every = tuple(params) + (shared.params if shared else ())
     start = {**(shared.values if shared else {}), **(start or {})}
@@ -59,16 +63,23 @@ def fit(
     def values(u):
         return {p.key: p.from_unit(x) for p, x in zip(every, u)}
 
-    starts = [u0]
-    for i, p in enumerate(params):
-        for g in p.grid:
-            u = u0.copy()
-            u[i] = p.to_unit(g)
-            starts.append(u)
-    tips = replayer.tips([make(values(u)) for u in starts])
-    sse = np.array([np.sum(residual(t, measured, train) ** 2) for t in tips])
-    best = int(np.argmin(sse))
-    u, tip, cost = starts[best], tips[best], sse[best]
+    if resume is not None:
+        u = np.array([p.to_unit(resume.values[p.key]) for p in every])
+        tip, cost = resume.tip, resume.sse_train
+    else:
+        starts = [u0]
+        for i, p in enumerate(params if grid else ()):
+            for g in p.grid:
+                u = u0.copy()
+                u[i] = p.to_unit(g)
+                if not any(
+                    np.allclose(u, s, rtol=0, atol=1e-12) for s in starts
+                ):  # a grid value at the start
+                    starts.append(u)
+        tips = replayer.tips([make(values(u)) for u in starts])
+        sse = np.array([np.sum(residual(t, measured, train) ** 2) for t in tips])
+        best = int(np.argmin(sse))
+        u, tip, cost = starts[best], tips[best], sse[best]
     lam = 1e-2
     J = None
     for _ in range(iterations):

@@ -35,7 +35,8 @@ def locate(
     blocks: int = 10,
 ) -> dict:
     """``residual`` (n, 3) of the re-fitted model; ``directions``: per muscle, the change of the
-    replayed tip when that muscle's pressure is scaled or delayed (n, 3), to attribute the residual."""
+    replayed tip when that muscle's pressure is scaled or delayed (n, 3; NaN rows where it was not
+    replayed), to attribute the residual (over the rows it covers)."""
     r = np.where(valid[:, None], residual, 0.0)
     edges = np.linspace(time_s[0], time_s[-1], blocks + 1)
     in_time = []
@@ -54,12 +55,14 @@ def locate(
         }
     dominant = np.argmax(command_Pa - command_Pa.mean(1, keepdims=True), axis=1)
     by_dominant = {muscles[i]: _rms(residual[valid & (dominant == i)]) for i in range(len(muscles))}
-    energy = float(np.sum(r**2)) or 1.0
     explained = {}
     for name, d in directions.items():
-        d = np.where(valid[:, None], d, 0.0)
+        known = np.all(np.isfinite(d), axis=1)  # a direction may cover only the first rows
+        d = np.where((valid & known)[:, None], d, 0.0)
+        rk = np.where(known[:, None], r, 0.0)
         nd = float(np.sum(d**2))
-        explained[name] = float(np.sum(r * d) ** 2 / (nd * energy)) if nd > 0 else 0.0
+        energy = float(np.sum(rk**2)) or 1.0
+        explained[name] = float(np.sum(rk * d) ** 2 / (nd * energy)) if nd > 0 else 0.0
     by_muscle = {m: max(explained.get(f"{m}:{kind}", 0.0) for kind in ("gain", "lag")) for m in muscles}
     by_section = {f"section {j + 1}": max(by_muscle[muscles[i]] for i in g) for j, g in enumerate(groups)}
     worst = max(in_time, key=lambda b: b["rms_m"])

@@ -155,8 +155,17 @@ class Replayer:
         )
         self._datas = None
         self.rollouts = 0
+        self.simulated_s = 0.0  # simulated time over all rollouts (settling included), s
         self.unstable = 0  # variants that diverged (scored as failed, never printed)
         self.warnings = 0  # MuJoCo warnings caught during the rollouts
+
+    def head(self, until_s: float) -> Replayer:
+        """The same replayer on the recording's rows up to ``until_s`` after its start (a
+        shorter, cheaper replay for screening; ``self`` when that is the whole recording)."""
+        n = int(np.searchsorted(self.time_s, self.time_s[0] + until_s, side="right"))
+        if n >= len(self.time_s):
+            return self
+        return Replayer(self.spec, self.time_s[:n], self.command_Pa[:n], self.settle_s, self.threads)
 
     # ------------------------------------------------------------------ variants as models
 
@@ -281,6 +290,7 @@ class Replayer:
         with _quiet_warnings() as caught:
             state, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
         self.rollouts += len(models)
+        self.simulated_s += len(models) * ctrl.shape[1] * self.dt
         tips = sensordata[:, :, adr : adr + 3].copy()
         bad = ~np.all(np.isfinite(tips) & (np.abs(tips) < UNSTABLE_M), axis=(1, 2))
         # a diverged arm can keep a bounded, frozen tip (its angles wrap, its sensors stop

@@ -5,12 +5,16 @@ with the arm)::
 
     {"format": "efam_mujoco.arm_spec/1", "name": "arm_1x3", "orientation": "upright",
      "pressure_tau_s": 0.05, "max_pressure_Pa": 517106.8, "payload_kg": 0.0, "gravity": true,
-     "timestep_s": 0.001, "axial_viscosity_N_s": 6.8, "bend_viscosity_N_m2_s": 0.05, "mode": "segmented",
-     "sections": [{"radius_m": 0.02, "angles_deg": [0, 120, 240], "disks": 4,
+     "timestep_s": null, "axial_viscosity_N_s": 6.8, "bend_viscosity_N_m2_s": 0.05,
+     "hold_tip": false, "mode": "segmented",
+     "sections": [{"radius_m": 0.0182, "angles_deg": [0, 120, 240], "disks": 8,
                    "end_mass_kg": null, "body_mass_kg": null, "plate_mass_kg": 0.0,
                    "muscles": [<muscle document>, ...]}]}
 
-A muscle entry may also be a preset name (``"FAM1"``).
+A muscle entry may also be a preset name (``"FAM1"``). ``"timestep_s": null`` (the default)
+lets the builder choose the step from the arm's physics (``arm/timestep.py``: 1 ms for the
+default damped arm at D = 8); a number is used as given (refused beyond the arm's stability
+limit, with a warning when within less than its margin).
 """
 
 from __future__ import annotations
