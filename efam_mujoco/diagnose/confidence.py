@@ -151,14 +151,7 @@ def paired_z(sse_a, sse_b, scale_b: float = 1.0) -> float:
     b's scaled by ``scale_b``) over its standard error. Positive: ``b`` predicts unseen blocks
     better; ``abs(z) < Z_SEPARATE``: the data cannot tell the two apart. Under a Gaussian noise
     model this is the held-out log-likelihood difference over its block-to-block spread."""
-    d = np.asarray(sse_a, float) - scale_b * np.asarray(sse_b, float)
-    if len(d) < 3:
-        return 0.0
-    se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
-    mean = float(np.mean(d))
-    if se <= 1e-300:
-        return 0.0 if abs(mean) <= 1e-300 else math.copysign(1e6, mean)
-    return mean / se
+    return _mean_over_standard_error(np.asarray(sse_a, float) - scale_b * np.asarray(sse_b, float), 1e-300)
 
 
 def paired_log_z(sse_a, sse_b, scale_b: float = 1.0) -> float:
@@ -170,13 +163,19 @@ def paired_log_z(sse_a, sse_b, scale_b: float = 1.0) -> float:
     ``abs(z) < Z_SEPARATE``: the data cannot tell the two apart."""
     a = np.maximum(np.asarray(sse_a, float), 1e-300)
     b = np.maximum(scale_b * np.asarray(sse_b, float), 1e-300)
-    d = np.log(a) - np.log(b)
+    return _mean_over_standard_error(np.log(a) - np.log(b), 1e-12)
+
+
+def _mean_over_standard_error(d: np.ndarray, tiny: float) -> float:
+    """Mean of the per-block differences over its standard error; 0 with fewer than 3 blocks
+    (no spread to judge by); when every block agrees exactly (spread below ``tiny``), 0 for no
+    difference, else a sure difference of its sign (+-1e6)."""
     if len(d) < 3:
         return 0.0
     se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
     mean = float(np.mean(d))
-    if se <= 1e-12:
-        return 0.0 if abs(mean) <= 1e-12 else math.copysign(1e6, mean)
+    if se <= tiny:
+        return 0.0 if abs(mean) <= tiny else math.copysign(1e6, mean)
     return mean / se
 
 
