@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
+import re
 import warnings
 from dataclasses import replace
 
@@ -137,7 +139,7 @@ class _Statics:
         self.tip_site = self.model.site("tip").id
         self.tip_body = self.model.site_bodyid[self.tip_site]
         self.base = self.model.body("base").id
-        self.chains = _section_chains(self.model)
+        self.chains = section_body_chains(self.model)
         self.warm: np.ndarray | None = None
 
     def _residual(self, qpos, applied):
@@ -230,31 +232,44 @@ class _Statics:
         d = self.data
         p0, R0 = d.xpos[self.base], d.xmat[self.base].reshape(3, 3)
         tip = R0.T @ (d.site_xpos[self.tip_site] - p0)
-        lengths = np.array(
-            [
-                sum(np.linalg.norm(d.xpos[b] - d.xpos[a]) for a, b in zip(chain[:-1], chain[1:]))
-                for chain in self.chains
-            ]
-        )
-        return tip, lengths
+        return tip, np.array(backbone_lengths(d.xpos.tolist(), self.chains))
 
 
-def _section_chains(model) -> list[list[int]]:
-    """Per section, body ids base plate, then disks ``s{j}d{k}`` in order (the backbone)."""
-    import re
+_DISK_BODY = re.compile(r"^s(\d+)d(\d+)$")
 
-    pattern = re.compile(r"^s(\d+)d(\d+)$")
-    disks: dict[int, dict[int, int]] = {}
-    for b in range(model.nbody):
-        match = pattern.match(model.body(b).name)
+
+def section_chains(body_names) -> list[list[str]]:
+    """Per section, the names of the bodies along its backbone: its base plate (the arm's
+    ``base`` or the previous section's end plate), then its disks ``s{j}d{k}`` in order."""
+    disks: dict[int, dict[int, str]] = {}
+    for name in body_names:
+        match = _DISK_BODY.match(name or "")
         if match:
-            disks.setdefault(int(match[1]), {})[int(match[2])] = b
-    chains, start = [], model.body("base").id
+            disks.setdefault(int(match[1]), {})[int(match[2])] = name
+    if not disks:
+        raise ValueError("model: no disk bodies named s{j}d{k}")
+    chains, start = [], "base"
     for j in sorted(disks):
-        chain = [start] + [disks[j][k] for k in sorted(disks[j])]
-        chains.append(chain)
-        start = chain[-1]
+        chains.append([start] + [disks[j][k] for k in sorted(disks[j])])
+        start = chains[-1][-1]
     return chains
+
+
+def section_body_chains(model) -> list[list[int]]:
+    """:func:`section_chains` of a compiled model, as body ids."""
+    names = [model.body(b).name for b in range(model.nbody)]
+    return [[names.index(name) for name in chain] for chain in section_chains(names)]
+
+
+def backbone_lengths(xpos, chains) -> list[float]:
+    """Per section, the backbone length (m): the polyline through its bodies' centres.
+    ``xpos``: every body's position as a list of [x, y, z] (``data.xpos.tolist()``: plain
+    floats, faster than numpy at this size); ``chains``: :func:`section_body_chains`."""
+    lengths = []
+    for chain in chains:
+        points = [xpos[i] for i in chain]
+        lengths.append(sum(map(math.dist, points[:-1], points[1:])))
+    return lengths
 
 
 _STATICS: dict = {}

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import collections
 import math
-import re
 
 import mujoco as mj
 import numpy as np
@@ -30,8 +29,6 @@ from . import arm_glue, workspace
 ACTION_NAME = "pressure_fraction_of_rated"
 #: seconds of physics run at the random initial pressures before an episode starts
 WARMUP_S = 0.5
-
-_DISK = re.compile(r"^s(\d+)d(\d+)$")
 
 # ------------------------------------------------------------------------------ the scene
 
@@ -168,7 +165,7 @@ def _add_muscle_anchors(spec: mj.MjSpec, arm_spec) -> None:
     (k = 0) and its spacer disks (k = 1..D), sized to the muscle's outer radius: what
     :meth:`EfamPhysics.render` draws the muscles between (the muscles are fixed tendons, which
     MuJoCo does not draw; drawing them at render time costs the physics step nothing)."""
-    chains = _section_chains([body.name for body in spec.bodies])
+    chains = arm_glue.section_chains([body.name for body in spec.bodies])
     names = iter(arm_glue.muscle_names(arm_spec))
     for section, chain in zip(arm_spec.sections, chains):
         for muscle, (x, y) in zip(section.muscles, section.offsets_m()):
@@ -178,23 +175,6 @@ def _add_muscle_anchors(spec: mj.MjSpec, arm_spec) -> None:
                     name=f"{name}_at{k}", pos=[float(x), float(y), 0.0], size=[muscle.rest_outer_radius_m, 0, 0],
                     group=MUSCLE_SITE_GROUP, rgba=[0, 0, 0, 0],
                 )  # fmt: skip
-
-
-def _section_chains(body_names) -> list[list[str]]:
-    """Per section, the names of the bodies along its backbone: its base plate (the arm's
-    ``base`` or the previous section's end plate), then its disks ``s{j}d{k}`` in order."""
-    disks: dict[int, dict[int, str]] = collections.defaultdict(dict)
-    for name in body_names:
-        match = _DISK.match(name or "")
-        if match:
-            disks[int(match[1])][int(match[2])] = name
-    if not disks:
-        raise ValueError("model: no disk bodies named s{j}d{k}")
-    chains, start = [], "base"
-    for j in sorted(disks):
-        chains.append([start] + [disks[j][k] for k in sorted(disks[j])])
-        start = chains[-1][-1]
-    return chains
 
 
 def _name_unnamed(spec: mj.MjSpec) -> None:
@@ -222,12 +202,10 @@ class _Layout:
     def __init__(self, model):
         names = [model.id2name(i, "body") for i in range(model.nbody)]
         self.base = names.index("base")
-        # per section: the bodies along its backbone, its base plate first
-        self.sections = [np.array([names.index(n) for n in chain]) for chain in _section_chains(names)]
-        # per section, as plain ints for the per-step accessors: its (base, end plate) bodies,
-        # and its backbone bodies (its base plate, then its disks)
-        self.section_ends = [(int(chain[0]), int(chain[-1])) for chain in self.sections]
-        self.backbone_chains = [chain.tolist() for chain in self.sections]
+        # per section, as plain ints for the per-step accessors: its backbone bodies (its base
+        # plate, then its disks) and its (base, end plate) pair
+        self.backbone_chains = [[names.index(n) for n in chain] for chain in arm_glue.section_chains(names)]
+        self.section_ends = [(chain[0], chain[-1]) for chain in self.backbone_chains]
         sensor = lambda n: int(model.sensor_adr[model.name2id(n, "sensor")])
         self.tip_pos = sensor("tip_pos")
         self.tip_vel = sensor("tip_vel")
@@ -426,12 +404,7 @@ class EfamPhysics(mujoco.Physics):
     def section_length_values(self) -> list[float]:
         """:meth:`section_lengths` as a list of floats (the per-step rewards' form: every numpy
         call costs microseconds after a control step's physics)."""
-        xpos = self.views.xpos.tolist()
-        lengths = []
-        for chain in self.layout.backbone_chains:
-            points = [xpos[i] for i in chain]
-            lengths.append(sum(map(math.dist, points[:-1], points[1:])))
-        return lengths
+        return arm_glue.backbone_lengths(self.views.xpos.tolist(), self.layout.backbone_chains)
 
     # -- muscles
     def rated_pressures_Pa(self) -> np.ndarray:
