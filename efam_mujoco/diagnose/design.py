@@ -208,20 +208,18 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     return out
 
 
-def separation(a: EffectModel, b: EffectModel, experiment: Experiment) -> tuple[float, float]:
-    """(RMS of the predicted force difference less its mean, its peak), N."""
+def _difference(a: EffectModel, b: EffectModel, experiment: Experiment):
+    """The two models' predicted force difference over ``experiment`` (N), with its L and P."""
     t, L, P = experiment.sampled()
-    d = a.push(t, L, P) - b.push(t, L, P)
+    return a.push(t, L, P) - b.push(t, L, P), L, P
+
+
+def _spread(d: np.ndarray) -> tuple[float, float]:
     d = d - d.mean()
     return float(np.sqrt(np.mean(d * d))), float(np.max(np.abs(d)))
 
 
-def unabsorbed(a: EffectModel, b: EffectModel, experiment: Experiment, absorb=None) -> float:
-    """RMS (N) of the two models' predicted force difference over ``experiment`` left after its
-    least-squares projection on a constant and on ``absorb(P, L)`` (columns: force changes the
-    model's own parameter corrections can make there), i.e. what no re-fit could take up."""
-    t, L, P = experiment.sampled()
-    d = a.push(t, L, P) - b.push(t, L, P)
+def _left_after_projection(d: np.ndarray, L: np.ndarray, P: np.ndarray, absorb=None) -> float:
     cols = [np.ones_like(d)]
     if absorb is not None:
         J = np.asarray(absorb(P, L), float)
@@ -234,6 +232,18 @@ def unabsorbed(a: EffectModel, b: EffectModel, experiment: Experiment, absorb=No
     return float(np.sqrt(np.mean(left * left)))
 
 
+def separation(a: EffectModel, b: EffectModel, experiment: Experiment) -> tuple[float, float]:
+    """(RMS of the predicted force difference less its mean, its peak), N."""
+    return _spread(_difference(a, b, experiment)[0])
+
+
+def unabsorbed(a: EffectModel, b: EffectModel, experiment: Experiment, absorb=None) -> float:
+    """RMS (N) of the two models' predicted force difference over ``experiment`` left after its
+    least-squares projection on a constant and on ``absorb(P, L)`` (columns: force changes the
+    model's own parameter corrections can make there), i.e. what no re-fit could take up."""
+    return _left_after_projection(*_difference(a, b, experiment), absorb)
+
+
 def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_N: float,
               absorb=None, sample_hz: float = SAMPLE_HZ) -> dict:  # fmt: skip
     """The candidate experiment that best separates the two models in ``models``: the largest
@@ -244,8 +254,9 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     scored = []
     for e in candidates(ctx, speed):
         try:
-            rms, peak = separation(a, b, e)
-            left = unabsorbed(a, b, e, absorb)
+            d, L, P = _difference(a, b, e)  # the two models simulated once per candidate
+            rms, peak = _spread(d)
+            left = _left_after_projection(d, L, P, absorb)
         except ValueError:
             continue
         n = float(e.t[-1]) * sample_hz
