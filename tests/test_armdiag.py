@@ -362,6 +362,10 @@ def test_head_replay_is_the_start_of_the_full_replay(spec):
     assert len(head.time_s) < len(rec.time_s) and full.head(60.0) is full
     knobs = with_values(full.nominal, gain=(0.9, 1.0, 1.05), lag_s=(0.05, 0.1, 0.2))
     np.testing.assert_array_equal(head.tips([knobs])[0], full.tips([knobs])[0][: len(head.time_s)])
+    # built once; its rollouts count in the whole replayer's cost too
+    assert full.head(2.5) is head
+    assert head.rollouts == 1 and full.rollouts == 2
+    assert full.simulated_s > head.simulated_s > 0
 
 
 def test_paired_comparison_never_separates_identical_predictions():

@@ -445,11 +445,6 @@ def _fit_effect(effect, replayer, base: FitResult, nominal: Knobs, measured, tra
             direction = np.full_like(base.tip, np.nan)
             direction[:n] = tips[m] - base.tip[:n]
             directions[f"{replayer.muscles[m]}:{kind}"] = direction
-    if head is not replayer:
-        replayer.rollouts += head.rollouts
-        replayer.simulated_s += head.simulated_s
-        replayer.unstable += head.unstable
-        replayer.warnings += head.warnings
     best = min(screens, key=lambda m: screens[m].sse_train)  # (an option may be a tuple: no min over keys)
     start = {p.key: screens[best].values[p.key] for p in effect.params}
     f = fit(replayer, effect.params, maker(best), measured, train, start=start, shared=base,

@@ -158,14 +158,30 @@ class Replayer:
         self.simulated_s = 0.0  # simulated time over all rollouts (settling included), s
         self.unstable = 0  # variants that diverged (scored as failed, never printed)
         self.warnings = 0  # MuJoCo warnings caught during the rollouts
+        self._cut_from: Replayer | None = None  # a head's whole replayer: counts there too
+        self._heads: dict[int, Replayer] = {}
 
     def head(self, until_s: float) -> Replayer:
         """The same replayer on the recording's rows up to ``until_s`` after its start (a
-        shorter, cheaper replay for screening; ``self`` when that is the whole recording)."""
+        shorter, cheaper replay for screening; ``self`` when that is the whole recording). Built
+        once per length; its rollouts count in this replayer's counters too."""
         n = int(np.searchsorted(self.time_s, self.time_s[0] + until_s, side="right"))
         if n >= len(self.time_s):
             return self
-        return Replayer(self.spec, self.time_s[:n], self.command_Pa[:n], self.settle_s, self.threads)
+        if n not in self._heads:
+            head = Replayer(self.spec, self.time_s[:n], self.command_Pa[:n], self.settle_s, self.threads)
+            head._cut_from = self
+            self._heads[n] = head
+        return self._heads[n]
+
+    def _count(self, rollouts: int, simulated_s: float, unstable: int, warnings: int) -> None:
+        """Add to the rollout counters, here and in the replayer this one was cut from."""
+        self.rollouts += rollouts
+        self.simulated_s += simulated_s
+        self.unstable += unstable
+        self.warnings += warnings
+        if self._cut_from is not None:
+            self._cut_from._count(rollouts, simulated_s, unstable, warnings)
 
     # ------------------------------------------------------------------ variants as models
 
@@ -289,8 +305,6 @@ class Replayer:
         adr = m0.sensor("tip_pos").adr[0]
         with _quiet_warnings() as caught:
             state, sensordata = rollout.rollout(models, datas, init, ctrl, persistent_pool=False)
-        self.rollouts += len(models)
-        self.simulated_s += len(models) * ctrl.shape[1] * self.dt
         tips = sensordata[:, :, adr : adr + 3].copy()
         bad = ~np.all(np.isfinite(tips) & (np.abs(tips) < UNSTABLE_M), axis=(1, 2))
         # a diverged arm can keep a bounded, frozen tip (its angles wrap, its sensors stop
@@ -299,8 +313,7 @@ class Replayer:
         speeds = state[:, :, 1 + m0.nq : 1 + m0.nq + m0.nv]
         bad |= ~np.all(np.isfinite(speeds) & (np.abs(speeds) < UNSTABLE_SPEED), axis=(1, 2))
         tips[bad] = FAILED_TIP_M  # a variant that blew up fits nothing: scored as a failed candidate
-        self.unstable += int(bad.sum())
-        self.warnings += len(caught)
+        self._count(len(models), len(models) * ctrl.shape[1] * self.dt, int(bad.sum()), len(caught))
         return tips
 
 
