@@ -132,17 +132,14 @@ def _file_args(args) -> tuple[dict, dict]:
 
 def check_argument_bounds(args) -> None:
     """Refuse a value outside the bounds a command declares (``parser.set_defaults(
-    argument_bounds={dest: (low, high, unit)})``; a callable bound is read when the command
-    runs; a flag the command does not have is skipped), naming the flag: a size that can exhaust
-    the machine, or a control MuJoCo would clamp silently."""
+    argument_bounds={dest: (low, high, unit)})``; a flag the command does not have is skipped),
+    naming the flag: a size that can exhaust the machine, or a control MuJoCo would clamp
+    silently."""
     import math
 
     for dest, (low, high, unit) in (getattr(args, "argument_bounds", None) or {}).items():
         value = getattr(args, dest, None)
         if value is None:
-            continue
-        high = high() if callable(high) else high
-        if high is None:
             continue
         for v in value if isinstance(value, (list, tuple)) else [value]:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and low <= v <= high):
