@@ -32,7 +32,7 @@ from ..files import write_text_atomic
 from ..muscle import Muscle
 from .masses import FITTING_LENGTH_M, FITTING_RADIUS_M
 from .spec import ORIENTATIONS, ArmSpec, SectionSpec, arm_1x3, arm_3x3
-from .timestep import ROUND_TIMESTEPS_S, apply_timestep, default_integrator
+from .timestep import ROUND_TIMESTEPS_S, apply_timestep, default_integrator, force_jacobian, generalized_force
 
 _MUSCLE_RGBA = ((0.85, 0.33, 0.1, 1), (0.1, 0.45, 0.75, 1), (0.2, 0.6, 0.25, 1), (0.55, 0.3, 0.65, 1))
 
@@ -643,14 +643,6 @@ __all__ = [
 ]
 
 
-def generalized_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-    """Net generalized force at zero velocity: passive (the muscle segments' extra forces) +
-    actuators (whole muscles) - gravity. Calls mj_forward."""
-    data.qvel[:] = 0.0
-    mujoco.mj_forward(model, data)
-    return data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
-
-
 def _quenched_settle(model, data, pressures_Pa, duration_s):
     data.ctrl[:] = np.ravel(pressures_Pa)
     end, kinetic, momentum = data.time + duration_s, 0.0, np.zeros(model.nv)
@@ -702,11 +694,7 @@ def _newton(model, data, tol_N) -> bool:
     for _ in range(50):
         if np.max(np.abs(r)) < tol_N:
             return True
-        K = np.empty((model.nv, model.nv))
-        for i in range(model.nv):
-            data.qpos[:] = q
-            data.qpos[i] += h
-            K[:, i] = (generalized_force(model, data) - r) / h
+        K = force_jacobian(model, data, q, r, h)
         step = np.linalg.lstsq(K, -r, rcond=None)[0]
         for scale in (1.0, 0.5, 0.25, 0.1, 0.03, 0.01):
             data.qpos[:] = q + scale * step

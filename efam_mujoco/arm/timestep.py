@@ -87,6 +87,26 @@ class TimestepChoice:
         )
 
 
+def generalized_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """Net generalized force at zero velocity: passive (the muscle segments' extra forces) +
+    actuators (whole muscles) - gravity. Calls mj_forward."""
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(model, data)
+    return data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
+
+
+def force_jacobian(model: mujoco.MjModel, data: mujoco.MjData, q, f0, step: float) -> np.ndarray:
+    """d(:func:`generalized_force`)/dq at ``q`` by forward differences of ``step`` (``f0``: the
+    force at ``q``). The arm's joints are hinges and slides: qpos and qvel align. Leaves
+    ``data`` at the last probe."""
+    K = np.empty((model.nv, model.nv))
+    for i in range(model.nv):
+        data.qpos[:] = q
+        data.qpos[i] += step
+        K[:, i] = (generalized_force(model, data) - f0) / step
+    return K
+
+
 def linearise(model: mujoco.MjModel, pressure_Pa: float, qpos=None, step_m: float = 1e-7):
     """(K, M, C) of ``model`` at ``qpos`` (default: ``qpos0``), zero velocity, every muscle at
     ``pressure_Pa`` (control and pressure state): K = -d(qfrc_passive + qfrc_actuator -
@@ -99,20 +119,9 @@ def linearise(model: mujoco.MjModel, pressure_Pa: float, qpos=None, step_m: floa
     lagged = model.actuator_actadr >= 0
     data.act[model.actuator_actadr[lagged]] = data.ctrl[lagged]
     q0 = data.qpos.copy()
-
-    def force(q):
-        data.qpos[:] = q
-        data.qvel[:] = 0.0
-        mujoco.mj_forward(model, data)
-        return data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
-
-    f0 = force(q0)
-    K = np.empty((model.nv, model.nv))
-    for i in range(model.nv):  # the arm's joints are hinges and slides: qpos and qvel align
-        q = q0.copy()
-        q[i] += step_m
-        K[:, i] = -(force(q) - f0) / step_m
-    force(q0)
+    K = -force_jacobian(model, data, q0, generalized_force(model, data), step_m)
+    data.qpos[:] = q0
+    generalized_force(model, data)
     M = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, M)
     C = np.diag(model.dof_damping.astype(float))
