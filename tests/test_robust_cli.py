@@ -566,6 +566,19 @@ def test_pressure_in_kpa_given_as_pa_warns():
         muscle.blocked_push(0.0)
 
 
+def test_arm_reference_checks_the_section_pressure_set_not_each_muscle():
+    """A strongly differential section (one muscle near 0 Pa, the others at hundreds of kPa) is a
+    genuine pressure set; a section whose every pressure is a few hundred "Pa" is a unit slip."""
+    from efam_mujoco.arm import SectionSpec, continuum
+
+    section = SectionSpec(muscles=(load_muscle("FAM1"),) * 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        continuum.solve_arm([section], [[404.0, 400e3, 420e3]])
+    with pytest.warns(PressureUnitWarning, match="420 Pa"):
+        continuum.solve_arm([section], [[404.0, 400.0, 420.0]])
+
+
 def test_saturation_is_never_silent():
     muscle = load_muscle("FAM1")
     with pytest.raises(RangeError, match=r"2e\+06 Pa is outside \[0, 1e\+06\] Pa"):

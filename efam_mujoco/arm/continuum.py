@@ -39,6 +39,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
+from ..units import check_pressure_Pa
+
 FORCE_SCALE_N = 100.0
 NEWTON_TOL = 1e-12  # on the constitutive residual, relative to FORCE_SCALE_N
 
@@ -215,7 +217,13 @@ def _cc_state(sec: _Section, strains) -> SectionState:
 def solve_section_cc(section, pressures_Pa) -> SectionState:
     """The unloaded section: the muscles' forces cancel and have no moment (CC arc)."""
     sec = _Section.of(section, pressures_Pa)
-    nu0 = float(np.mean([m.free_length(p) for m, p in zip(sec.muscles, sec.pressures)])) / sec.length
+    # the unit check looks at the section's pressure set once: one muscle of a strongly differential
+    # set may well be at a few hundred Pa, which Muscle.free_length alone would take for kPa
+    check_pressure_Pa(sec.pressures, "continuum.solve_section_cc")
+    nu0 = (
+        float(np.mean([m._free_length_one(float(p)) for m, p in zip(sec.muscles, sec.pressures)]))
+        / sec.length
+    )
     return _cc_state(sec, sec.strains(np.zeros(3), [nu0, 0.0, 0.0]))
 
 
