@@ -116,7 +116,9 @@ def _by_recording(ctx, fn):
     return out
 
 
-def features(ctx: Context, spec: dict | None = None, sensitivity: bool = False) -> tuple[np.ndarray, list[str], dict]:
+def features(
+    ctx: Context, spec: dict | None = None, sensitivity: bool = False
+) -> tuple[np.ndarray, list[str], dict]:
     """Causal feature columns (n x m) and their names, each scaled to unit RMS over the data it
     was first built on; ``spec`` (returned) rebuilds the same columns on other data (a new
     protocol), with the same centres, scales and order. ``sensitivity``: also the input-error
