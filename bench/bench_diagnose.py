@@ -132,7 +132,8 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         d2 = diagnose([recording, extra], nominal, next_experiment=False)
         row["next"] = {
             "experiment": rec["name"], "predicted_difference_rms_N": rec["predicted_difference_rms_N"],
-            "ratio_to_noise": rec["ratio_to_noise"], "answer": d2.verdict.answer,
+            "ratio_to_noise": rec["ratio_to_noise"], "expected_z": rec.get("expected_z"),
+            "blocks": rec.get("blocks"), "duration_s": rec.get("duration_s"), "answer": d2.verdict.answer,
             "probability": d2.verdict.probability, "confident": d2.verdict.confident,
             "correct": correct(d2.verdict.answer, kind, case.names, shows),
         }  # fmt: skip

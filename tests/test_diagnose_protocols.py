@@ -234,3 +234,76 @@ def test_next_experiment_separates_friction_from_viscoelasticity(cases):
     assert best["predicted_difference_rms_N"] > 3 * d.noise_N
     assert "noise floor" in plan["words"]
     assert isinstance(d.ctx, Context)
+
+
+# ---------------------------------------------------------------------- next-experiment score
+def test_decision_z_predicts_the_bootstrap_win_fraction():
+    # the design's expected z against the decision rule itself: 20 blocks already recorded where
+    # the two hypotheses split evenly (+-D), then the new test's blocks, each adding S_k to the
+    # wrong hypothesis's held-out error; the bootstrap's win fraction of the truth ~ Phi(z)
+    from math import erf, sqrt
+
+    from efam_mujoco.diagnose.design import decision_z
+
+    rng = np.random.default_rng(5)
+    for gaps in ([40.0], [10.0] * 4, [3.0, 5.0, 8.0, 20.0, 2.0, 2.0]):
+        before = np.r_[np.full(10, 12.0), np.full(10, -12.0)]
+        base = np.full(20 + len(gaps), 50.0)
+        a = base.copy()  # the truth
+        b = base.copy()
+        b[:20] += before  # b is better in half the old blocks and worse in the other half
+        a[:20] += 0.0
+        b[20:] += gaps
+        block = np.arange(len(base))
+        win = bootstrap(
+            {"a": np.sqrt(a), "b": np.sqrt(b)}, block, margin=0.0, draws=20000, seed=int(rng.integers(99))
+        )
+        z = decision_z(np.array(gaps), 0.0, before)
+        assert win["a"] == pytest.approx(0.5 * (1 + erf(z / sqrt(2))), abs=0.06)
+
+
+def test_decision_z_counts_a_spread_difference_more_than_the_same_in_one_block():
+    from efam_mujoco.diagnose.design import decision_z
+
+    # the same total squared difference: one block decides nothing under the bootstrap (z = 1),
+    # spread over K equal blocks it gives sqrt(K) (noise-free); the noise's cross term lowers it
+    assert decision_z(np.array([100.0]), 0.0) == pytest.approx(1.0)
+    assert decision_z(np.full(9, 100.0 / 9), 0.0) == pytest.approx(3.0)
+    assert decision_z(np.full(9, 100.0 / 9), 1.0) == pytest.approx(100 / np.sqrt(9 * (100 / 9) ** 2 + 400))
+
+
+def test_two_experiments_run_one_after_the_other(cases):
+    from efam_mujoco.diagnose.design import THEN, blocks_of, experiment
+
+    _, _, d = cases["visco_sine"]
+    first, second = experiment("fast", d.ctx, 5e-3), experiment("long_hold", d.ctx, 5e-3)
+    both = experiment(f"fast{THEN}long_hold", d.ctx, 5e-3)
+    assert both.t[-1] == pytest.approx(first.t[-1] + second.t[-1], abs=0.01)
+    t, L, P = both.sampled()
+    t1, L1, P1 = first.sampled()
+    np.testing.assert_allclose(L[: len(t1) - 1], L1[:-1], atol=1e-9)
+    np.testing.assert_allclose(P[: len(t1) - 1], P1[:-1], atol=1e-6)
+    # blocks as the joint diagnosis cuts them: pieces of half-cycles up to MIN_BLOCKS in all,
+    # whole half-cycles once the data already recorded have that many
+    from efam_mujoco.diagnose.confidence import MIN_BLOCKS
+
+    alone, joined = blocks_of(first, d.ctx.muscle), blocks_of(first, d.ctx.muscle, half_cycles_before=100)
+    assert alone.max() + 1 >= MIN_BLOCKS
+    assert 8 <= joined.max() + 1 < MIN_BLOCKS  # two pressures x two strokes each way, at least
+    assert np.all(np.diff(alone) >= 0) and np.all(np.diff(joined) >= 0)
+
+
+def test_data_driven_correction_sees_a_pressure_transducer_error():
+    # isometric ramps read through a transducer whose error is a full sine period over the range
+    # (virtual_bench's sensor_nonlinearity, outside the library): the force error is the model's
+    # pressure sensitivity times an error that is a function of the pressure alone, which the
+    # input-error features (bump(P) x dF/dP) describe and a pressure bump alone only approximates
+    case = V.draw_case(918, "isometric", "outside")
+    case.effects = [("sensor_nonlinearity", "")]
+    recording = V.make(case)
+    d = diagnose([recording], load_muscle(case.base_name), next_experiment=False)
+    c = d.correction
+    assert c.terms and any("dF/dP" in t for t in c.terms)
+    assert c.heldout_rms_after_N < 0.6 * c.heldout_rms_before_N  # held out: the folds' unseen data
+    assert c.heldout_rms_after_N < 1.5 * case.noise_N
+    assert c.gain >= d.verdict.dd_gain  # no worse than the calibrated feature set alone

@@ -220,7 +220,10 @@ def diagnose(
     dd_z, dd_z_none = _dd_z(on_top[1], block), _dd_z(corr_none, block)
     judged = verdict(raw, cut, on_top[1].gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
                      pair=pair, block_sse=sse, dd_z=dd_z, dd_z_none=dd_z_none, excess_left=excess_left)  # fmt: skip
-    unexplained = _unexplained(ctx, labels, force - final.prediction, noise, corr)
+    # the reported correction adds the input-error features (``datadriven.features``); the
+    # confidence above keeps the feature set its probability map was calibrated with
+    reported = correction(engine, final, sensitivity=True)
+    unexplained = _unexplained(ctx, labels, force - final.prediction, noise, reported)
     design = None
     if judged.ambiguous and next_experiment:
         models = {}
@@ -240,7 +243,20 @@ def diagnose(
         def absorb(P, L):
             return linearise(fitted.muscle, P, L, muscle, span=SPAN).J
 
-        design = recommend(models, ctx, stroke_speed(ctx, labels), noise, absorb=absorb)
+        # what the data already say, block by block: it spreads the bootstrap's draws
+        (ha, hb) = list(models)[:2]
+        if OUTSIDE in models:
+            c = models[OUTSIDE].correction
+            before = (
+                block_sse(c.heldout_residual_before, block) - block_sse(c.heldout_residual_after, block)
+                if c.heldout_residual_before is not None and c.heldout_residual_after is not None
+                else None
+            )
+        else:
+            before = sse[ha] - sse[hb] if ha in sse and hb in sse else None
+        half_before = int(labels.half_cycle.max()) + 1 if labels.half_cycle is not None else 1
+        design = recommend(models, ctx, stroke_speed(ctx, labels), noise, absorb=absorb, before=before,
+                           half_cycles_before=half_before)  # fmt: skip
 
     muscle_before, _ = _polish(recordings, base, lin, force, labels)
     predicted_before = muscle_before.push(ctx.P, ctx.L)
@@ -281,7 +297,7 @@ def diagnose(
         sources=[str(r.meta.get("source", "")) for r in recordings],
         evidence={"block_sse": {k: v.tolist() for k, v in sse.items()}, "excess_left": excess_left,
                   "dd_z": dd_z, "dd_z_none": dd_z_none},
-        verdict=judged, correction=corr, unexplained=unexplained, next_experiment=design,
+        verdict=judged, correction=reported, unexplained=unexplained, next_experiment=design,
         structure=labels.describe(),
         heldout_residual_before=base.heldout_residual, heldout_residual_after=final.heldout_residual,
     )  # fmt: skip

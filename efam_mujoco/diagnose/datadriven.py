@@ -3,9 +3,11 @@
 When structured residual remains above the noise after the best library terms, a correction
 that no physical name is given to may still predict it. The features are generic functions of
 the states and their histories (``features``): radial bumps over the strain and over the
-pressure (each also scaled by the other), the rates and their saturated signs (direction), the
+pressure (each also scaled by the other; for the reported correction also by the model's own
+sensitivity to that input: an error of a measured input as a function of its value), the rates and their saturated signs (direction), the
 strain's acceleration, the strain and the pressure less their first-order lags at time constants
-from 0.05 to 30 s (memory), the time, and the distance below the running maximum of the loading
+from 0.05 to 30 s (memory; for the reported correction the pressure's also scaled by the model's sensitivity
+to it), the time, and the distance below the running maximum of the loading
 (first-loading memory). Every column is causal, as a simulation step could compute it.
 
 The correction is fitted jointly with the model's parameter corrections and the library terms
@@ -114,12 +116,16 @@ def _by_recording(ctx, fn):
     return out
 
 
-def features(ctx: Context, spec: dict | None = None) -> tuple[np.ndarray, list[str], dict]:
+def features(
+    ctx: Context, spec: dict | None = None, sensitivity: bool = False
+) -> tuple[np.ndarray, list[str], dict]:
     """Causal feature columns (n x m) and their names, each scaled to unit RMS over the data it
     was first built on; ``spec`` (returned) rebuilds the same columns on other data (a new
-    protocol), with the same centres, scales and order."""
+    protocol), with the same centres, scales and order. ``sensitivity``: also the input-error
+    columns (bumps and pressure histories times the model's sensitivity to that input)."""
     fit = spec is None
-    spec = {"rms": {}} if fit else spec
+    spec = {"rms": {}, "sensitivity": sensitivity} if fit else spec
+    sensitivity = spec.get("sensitivity", False)
     x, P, t = ctx.x, ctx.P_MPa, ctx.t
     if fit:
         spec["p_top"] = max(float(np.percentile(P, 99)), 1e-3)
@@ -139,14 +145,21 @@ def features(ctx: Context, spec: dict | None = None) -> tuple[np.ndarray, list[s
         cols.append(col / spec["rms"][name])
         names.append(name)
 
+    # the model's own sensitivities: an error in a measured input (a transducer's nonlinearity,
+    # a gas pressure above the supply's) moves the force by the sensitivity times that error
+    dF_dP, dF_dL = (ctx.dF_dP(), ctx.dF_dL()) if sensitivity else (None, None)
     bx, cx, spec["bx"] = _bumps(x, 8, spec.get("bx"))
     for b, c in zip(bx, cx):
         add(b, f"bump(strain @ {c})")
         add(b * p, f"bump(strain @ {c}) * P")
+        if sensitivity:
+            add(b * dF_dL, f"bump(strain @ {c}) * dF/dL")
     bp, cp, spec["bp"] = _bumps(P, 8, spec.get("bp"))
     for b, c in zip(bp, cp):
         add(b, f"bump(P @ {c} MPa)")
         add(b * x, f"bump(P @ {c} MPa) * strain")
+        if sensitivity:
+            add(b * dF_dP, f"bump(P @ {c} MPa) * dF/dP")
     for name, u in (("strain", x), ("P", p)):
         rate = _by_recording(ctx, lambda s, u=u: np.gradient(lag(t[s], u[s], 0.1), t[s]))
         if fit:
@@ -165,6 +178,8 @@ def features(ctx: Context, spec: dict | None = None) -> tuple[np.ndarray, list[s
             other = "P" if name == "strain" else "strain"
             add(d, f"{name} - lag({name}, {tau:g} s)")
             add(d * (p if name == "strain" else x), f"({name} - lag({name}, {tau:g} s)) * {other}")
+            if name == "P" and sensitivity:
+                add(d * dF_dP, f"(P - lag(P, {tau:g} s)) * dF/dP")
     add(t / spec["t_max"], "time")
     add((t / spec["t_max"]) ** 2, "time^2")
     load = np.abs(x) * (1 + p)
@@ -214,8 +229,9 @@ def _rss(G, b, yy, idx, theta) -> float:
     return float(yy - 2 * theta @ b[idx] + theta @ Ga @ theta)
 
 
-def correction(engine: Engine, fit: Fit) -> Correction:
-    """The data-driven correction on top of ``fit`` (the model with its kept library terms).
+def correction(engine: Engine, fit: Fit, sensitivity: bool = False) -> Correction:
+    """The data-driven correction on top of ``fit`` (the model with its kept library terms);
+    ``sensitivity``: with the input-error features too (``features``).
 
     For each held-out fold, the model's parameter corrections and the kept terms are fitted on the
     training folds only (bounded, as in ``select``); the features are then fitted to that model's
@@ -225,7 +241,9 @@ def correction(engine: Engine, fit: Fit) -> Correction:
     effects = [get(name) for name in fit.names]
     shapes = [fit.shapes[name] for name in fit.names]
     fixed, C, clo, chi, owner = engine._design(effects, shapes)
-    Xf, names, spec = engine.ctx.cached("dd_features", lambda: features(engine.ctx))
+    Xf, names, spec = engine.ctx.cached(
+        ("dd_features", sensitivity), lambda: features(engine.ctx, sensitivity=sensitivity)
+    )
     X = Xf[engine.order]
     A0 = np.hstack([engine.Jn, C])
     lo = np.r_[engine.jlo * engine.Jscale, clo]
