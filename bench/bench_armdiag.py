@@ -58,6 +58,10 @@ from efam_mujoco.progress import progress  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "armdiag.json"
+#: disks per section of the timing arm: D = 2 at 4 ms is not a credible 3-section arm (its tip
+#: departs 68-238 mm RMS from the builder's D = 8, and two models a few kPa apart part by
+#: 350 mm for seconds at 4 ms: see docs/armdiag.md); D = 4 at 4 ms matches D = 4 at 1 ms
+TIMING_DISKS = 4
 FIGURES = ROOT / "docs" / "figures"
 
 
@@ -66,7 +70,7 @@ def arms() -> dict:
     return {
         "1x3": arm.ArmSpec(sections=(arm.paper_section(disks=4),), timestep_s=4e-3, name="arm_1x3"),
         "2x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 2, orientation="hanging", timestep_s=4e-3, name="arm_2x3"),
-        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
+        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=TIMING_DISKS),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
     }  # fmt: skip
 
 
@@ -189,16 +193,18 @@ def fit_calibration(rows) -> dict:
             "p_none_at_floor": float(p_none), "rows_at_floor": len(floor)}  # fmt: skip
 
 
-def timing_case(spec, seed) -> dict:
+def timing_case(spec, seed, truth_name="weak_muscle") -> dict:
+    """A 60 s recording at 100 Hz of the 3-section arm (random protocol, one concealed effect)
+    diagnosed on one thread: CPU seconds of this process, and whether the answer is right."""
     rng = np.random.default_rng(seed)
     muscles = [a.name for a in spec.actuators]
-    truth = random_truth("weak_muscle", muscles, rng)
+    truth = random_truth(truth_name, muscles, rng)
     rec = make_recording(spec, truth, "random", rng, duration_s=60.0, rate_Hz=100.0)
     wall = time.perf_counter()
     d = diagnose_arm(spec, rec, threads=1)
     return {
-        "arm": "3 sections x 3 FAM1 muscles, hanging, D = 2 disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
-        "seconds_cpu_one_thread": d.seconds, "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
+        "arm": f"3 sections x 3 FAM1 muscles, hanging, D = {TIMING_DISKS} disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
+        "seed": seed, "seconds_cpu_one_thread": d.seconds, "search_window_s": d.decisions["search_window_s"], "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
         "simulated_s": d.decisions["simulated_s"], "heldout_rms_nominal_m": d.heldout_rms_nominal_m,
         "heldout_rms_refit_m": d.heldout_rms_before_m, "noise_m": d.noise_m,
         "truth": truth.name, "truth_muscle": truth.muscle, "answer": d.verdict["answer"],
@@ -207,10 +213,11 @@ def timing_case(spec, seed) -> dict:
 
 
 def discretisation_case(seed, duration_s=20.0) -> dict:
-    """How far the timing case's coarse arm (D = 2 disks per section, 4 ms) is from the
-    builder's default (D = 8, its own step) under the same lab commands (the random protocol,
-    3 sections hanging, no effect): tip RMS per 5 s block between the replays, and the CPU cost
-    of one simulated second of each, side by side in this process."""
+    """How far coarse arms (D = 2 and 4 disks per section, 4 ms and 1 ms) are from the builder's
+    default (D = 8, its own step) under the same lab commands (the random protocol, 3 sections
+    hanging, no effect), and how far 4 ms is from 1 ms at the same D: tip RMS per 5 s block
+    between the replays, and the CPU cost of one simulated second of each, side by side in this
+    process."""
     rng = np.random.default_rng(seed)
 
     def spec(disks, timestep_s):
@@ -218,7 +225,8 @@ def discretisation_case(seed, duration_s=20.0) -> dict:
                                           timestep_s=timestep_s, name="arm_3x3"))  # fmt: skip
 
     rec = make_recording(spec(2, 4e-3), synth_none(), "random", rng, duration_s=duration_s, rate_Hz=100.0)
-    variants = {"D=2, 4 ms": (2, 4e-3), "D=4, 4 ms": (4, 4e-3), "D=8, builder's step": (8, None)}
+    variants = {"D=2, 4 ms": (2, 4e-3), "D=2, 1 ms": (2, 1e-3), "D=4, 4 ms": (4, 4e-3), "D=4, 1 ms": (4, 1e-3),
+                "D=8, builder's step": (8, None)}  # fmt: skip
     tips, cost = {}, {}
     for name, (disks, dt) in variants.items():
         replayer = Replayer(spec(disks, dt), rec.time_s, rec.command_Pa, threads=1)
@@ -232,10 +240,16 @@ def discretisation_case(seed, duration_s=20.0) -> dict:
         "duration_s": duration_s,
         "cpu_s_per_simulated_s": cost,
         "tip_rms_vs_default_m": {},
+        "tip_rms_4ms_vs_1ms_same_D_m": {},
     }
     for name, tip in tips.items():
         err = np.linalg.norm(tip - ref, axis=1)
         out["tip_rms_vs_default_m"][name] = [
+            float(np.sqrt(np.mean(err[(rec.time_s >= a) & (rec.time_s < b)] ** 2))) for a, b in zip(edges[:-1], edges[1:])
+        ]  # fmt: skip
+    for disks in (2, 4):  # the time step alone: 4 ms against 1 ms at the same D
+        err = np.linalg.norm(tips[f"D={disks}, 4 ms"] - tips[f"D={disks}, 1 ms"], axis=1)
+        out["tip_rms_4ms_vs_1ms_same_D_m"][f"D={disks}"] = [
             float(np.sqrt(np.mean(err[(rec.time_s >= a) & (rec.time_s < b)] ** 2))) for a, b in zip(edges[:-1], edges[1:])
         ]  # fmt: skip
     return out
