@@ -10,9 +10,9 @@ Arms (the physical, segmented arm with the exact arc geometry of its segments; f
 speed, the builder's default is 8 per section at a 1 ms step): 1 section of 3 FAM1 muscles
 upright (4 disks) and 2 sections hanging (2 disks per section), both at a 4 ms time step (stable
 at the arm's damping, limit about 9 ms; the builder warns that it is within less than its 2x
-margin); the timing case is a 3-section hanging arm (2 disks per section, 4 ms), 60 s at 100 Hz,
-on one thread, CPU time of this process. At the default D = 8 and 1 ms one replay of that
-recording costs about 60 times more (0.29 s CPU per simulated second against 0.005 s).
+margin); the timing case is a 3-section hanging arm (4 disks per section, 4 ms), 60 s at 100 Hz,
+on one thread, CPU time of this process (the diagnosis alone, not the making of the recording).
+At the default D = 8 and 1 ms one simulated second costs about 15 to 20 times more.
 
 Calibration first: the probability temperature T and P(none) at the noise floor are fitted on
 calibration cases whose seeds (``--cal-seed``) are disjoint from the evaluation's (``--seed``),
@@ -27,6 +27,7 @@ held-out blocks.
 
 Usage: python bench/bench_armdiag.py [--reps 5] [--reps-2 3] [--seed 91000] [--cal-reps 1]
 [--cal-reps-2 1] [--cal-seed 71000] [--duration 20] [--no-timing] [--out PATH]
+[--timing-json PATH] [--timing-only PATH [--timing-truths a,b]] [--discretisation PATH]
 Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_reliability.png,
 armdiag_tip.png; the rows are saved after every case (a cut-off run keeps what it did).
 """
@@ -341,6 +342,13 @@ def main(argv=None) -> int:
         "--timing-json", type=Path, help="take the timing case from this JSON (measured by an earlier run)"
     )
     parser.add_argument(
+        "--timing-only",
+        type=Path,
+        help="only the timing case (seed --seed + 5000, weak muscle) and further cases on the next seeds "
+        "with the truths of --timing-truths; JSON here (the first case, plus 'more_cases')",
+    )
+    parser.add_argument("--timing-truths", default="weak_muscle,pressure_lag,cross_talk")
+    parser.add_argument(
         "--discretisation",
         type=Path,
         help="only compare the timing arm's D = 2 with the default D = 8; JSON here",
@@ -352,6 +360,16 @@ def main(argv=None) -> int:
         print(result)
         return 0
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
+    if args.timing_only:
+        first = timing_case(specs["3x3"], args.seed + 5000)
+        print("timing:", first, flush=True)
+        more = []
+        for i, truth_name in enumerate(args.timing_truths.split(",") if args.timing_truths else []):
+            more.append(timing_case(specs["3x3"], args.seed + 5001 + i, truth_name))
+            print("timing:", more[-1], flush=True)
+            write_json_atomic(args.timing_only, first | {"more_cases": more})
+        write_json_atomic(args.timing_only, first | {"more_cases": more})
+        return 0
     started = time.perf_counter()
     evaluation = plan_cases(args.seed, args.reps, args.reps_2)
     calibration_plan = plan_cases(args.cal_seed, args.cal_reps, args.cal_reps_2)
