@@ -163,7 +163,7 @@ def search_window_s(time_s: np.ndarray) -> float | None:
     for b in range(BLOCKS - 1):  # the last block ends the recording: no window
         trained += 0.0 if b in HELD_OUT_BLOCKS else block_s
         if trained >= WINDOW_TRAIN_S - 1e-3 * block_s:  # (sample times: a block is a hair short)
-            return (b + 1) * block_s
+            return float((b + 1) * block_s)
     return None
 
 
