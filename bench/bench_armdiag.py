@@ -210,6 +210,9 @@ def timing_case(spec, seed, truth_name="weak_muscle") -> dict:
         "heldout_rms_refit_m": d.heldout_rms_before_m, "noise_m": d.noise_m,
         "truth": truth.name, "truth_muscle": truth.muscle, "answer": d.verdict["answer"],
         "muscle": d.effects[0]["muscle"] if d.effects else None, "heldout_rms_after_m": d.heldout_rms_after_m,
+        "probability": d.verdict["probability"], "confident": d.verdict["confident"],
+        "ambiguous": d.verdict["ambiguous"], "alternatives": d.verdict["alternatives"],
+        "candidates_heldout_rms_m": {c["name"]: c["heldout_rms_m"] for c in d.candidates},
     }  # fmt: skip
 
 
