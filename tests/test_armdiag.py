@@ -426,3 +426,22 @@ def test_window_fitted_weak_muscle_equals_the_whole_fit(spec):
     assert found["window"] == pytest.approx(0.8, abs=0.01)
     assert found["whole"] == pytest.approx(0.8, abs=0.01)
     assert found["window"] == pytest.approx(found["whole"], abs=0.005)
+
+
+def test_long_recording_is_searched_on_its_window_and_judged_whole(spec):
+    """A 24 s recording (a weak s1m2, orifice leak) is searched on its first 16 s only, yet the
+    diagnosis reports whole-recording replays: every tip row, held-out errors from the rows
+    beyond the window too, and names the muscle."""
+    rng = np.random.default_rng(6)
+    truth = Truth("weak_muscle", {"leak_sqrt_Pa": 130.0}, "s1m2")
+    rec = make_recording(spec, truth, "steps", rng, duration_s=24.0, rate_Hz=30.0, noise_m=5e-4)
+    d = diagnose_arm(spec, rec, threads=1, effects=("payload", "weak_muscle"))
+    assert d.decisions["search_window_s"] == pytest.approx(16.0, abs=0.1)
+    assert d.verdict["answer"] == "weak_muscle" and d.effects[0]["muscle"] == "s1m2"
+    late = rec.time_s > d.decisions["search_window_s"]
+    for tip in (d.tip_nominal, d.tip_before, d.tip_after):
+        assert tip.shape == rec.tip_m.shape and np.all(np.isfinite(tip))
+    # the identified model follows the recording beyond the window as well as inside it
+    err = np.linalg.norm(d.tip_after - rec.tip_m, axis=1)
+    inside, beyond = np.nanmean(err[~late & rec.valid]), np.nanmean(err[late & rec.valid])
+    assert beyond < 2 * inside + 1e-3 and d.heldout_rms_after_m < 0.5 * d.heldout_rms_nominal_m
