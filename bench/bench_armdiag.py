@@ -59,9 +59,9 @@ from efam_mujoco.progress import progress  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "armdiag.json"
-#: disks per section of the timing arm: D = 2 at 4 ms is not a credible 3-section arm (its tip
-#: departs 68-238 mm RMS from the builder's D = 8, and two models a few kPa apart part by
-#: 350 mm for seconds at 4 ms: see docs/armdiag.md); D = 4 at 4 ms matches D = 4 at 1 ms
+#: disks per section of the timing arm: D = 2 is not a credible 3-section arm (its tip departs
+#: 56-219 mm RMS from the builder's D = 8, and two models a few kPa apart part by up to 390 mm
+#: for seconds: see docs/armdiag.md); D = 4 at 4 ms is within 2.5-3.5 mm of D = 4 at 1 ms
 TIMING_DISKS = 4
 FIGURES = ROOT / "docs" / "figures"
 
