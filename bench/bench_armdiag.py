@@ -27,7 +27,8 @@ held-out blocks.
 
 Usage: python bench/bench_armdiag.py [--reps 5] [--reps-2 3] [--seed 91000] [--cal-reps 1]
 [--cal-reps-2 1] [--cal-seed 71000] [--duration 20] [--no-timing] [--out PATH]
-[--timing-json PATH] [--timing-only PATH [--timing-truths a,b]] [--discretisation PATH]
+[--timing-json PATH] [--timing-only PATH [--timing-truths a,b]] [--whole-search]
+[--discretisation PATH]
 Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_reliability.png,
 armdiag_tip.png; the rows are saved after every case (a cut-off run keeps what it did).
 """
@@ -352,6 +353,11 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--timing-truths", default="weak_muscle,pressure_lag,cross_talk")
     parser.add_argument(
+        "--whole-search",
+        action="store_true",
+        help="search every recording whole (the coarse-to-fine window switched off), for comparison",
+    )
+    parser.add_argument(
         "--discretisation",
         type=Path,
         help="only compare the timing arm's D = 2 with the default D = 8; JSON here",
@@ -363,6 +369,8 @@ def main(argv=None) -> int:
         print(result)
         return 0
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
+    if args.whole_search:
+        diagnosis.WINDOW_TRAIN_S = float("inf")
     if args.timing_only:
         first = timing_case(specs["3x3"], args.seed + 5000)
         print("timing:", first, flush=True)
