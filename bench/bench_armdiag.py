@@ -10,9 +10,9 @@ Arms (the physical, segmented arm with the exact arc geometry of its segments; f
 speed, the builder's default is 8 per section at a 1 ms step): 1 section of 3 FAM1 muscles
 upright (4 disks) and 2 sections hanging (2 disks per section), both at a 4 ms time step (stable
 at the arm's damping, limit about 9 ms; the builder warns that it is within less than its 2x
-margin); the timing case is a 3-section hanging arm (2 disks per section, 4 ms), 60 s at 100 Hz,
-on one thread, CPU time of this process. At the default D = 8 and 1 ms one replay of that
-recording costs about 60 times more (0.29 s CPU per simulated second against 0.005 s).
+margin); the timing case is a 3-section hanging arm (4 disks per section, 4 ms), 60 s at 100 Hz,
+on one thread, CPU time of this process (the diagnosis alone, not the making of the recording).
+At the default D = 8 and 1 ms one simulated second costs about 15 to 20 times more.
 
 Calibration first: the probability temperature T and P(none) at the noise floor are fitted on
 calibration cases whose seeds (``--cal-seed``) are disjoint from the evaluation's (``--seed``),
@@ -27,6 +27,8 @@ held-out blocks.
 
 Usage: python bench/bench_armdiag.py [--reps 5] [--reps-2 3] [--seed 91000] [--cal-reps 1]
 [--cal-reps-2 1] [--cal-seed 71000] [--duration 20] [--no-timing] [--out PATH]
+[--timing-json PATH] [--timing-only PATH [--timing-truths a,b]] [--whole-search]
+[--discretisation PATH]
 Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_reliability.png,
 armdiag_tip.png; the rows are saved after every case (a cut-off run keeps what it did).
 """
@@ -58,6 +60,10 @@ from efam_mujoco.progress import progress  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "armdiag.json"
+#: disks per section of the timing arm: D = 2 is not a credible 3-section arm (its tip departs
+#: 56-219 mm RMS from the builder's D = 8, and two models a few kPa apart part by up to 390 mm
+#: for seconds: see docs/armdiag.md); D = 4 at 4 ms is within 2.5-3.5 mm of D = 4 at 1 ms
+TIMING_DISKS = 4
 FIGURES = ROOT / "docs" / "figures"
 
 
@@ -66,7 +72,7 @@ def arms() -> dict:
     return {
         "1x3": arm.ArmSpec(sections=(arm.paper_section(disks=4),), timestep_s=4e-3, name="arm_1x3"),
         "2x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 2, orientation="hanging", timestep_s=4e-3, name="arm_2x3"),
-        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
+        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=TIMING_DISKS),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
     }  # fmt: skip
 
 
@@ -189,28 +195,34 @@ def fit_calibration(rows) -> dict:
             "p_none_at_floor": float(p_none), "rows_at_floor": len(floor)}  # fmt: skip
 
 
-def timing_case(spec, seed) -> dict:
+def timing_case(spec, seed, truth_name="weak_muscle") -> dict:
+    """A 60 s recording at 100 Hz of the 3-section arm (random protocol, one concealed effect)
+    diagnosed on one thread: CPU seconds of this process, and whether the answer is right."""
     rng = np.random.default_rng(seed)
     muscles = [a.name for a in spec.actuators]
-    truth = random_truth("weak_muscle", muscles, rng)
+    truth = random_truth(truth_name, muscles, rng)
     rec = make_recording(spec, truth, "random", rng, duration_s=60.0, rate_Hz=100.0)
     wall = time.perf_counter()
     d = diagnose_arm(spec, rec, threads=1)
     return {
-        "arm": "3 sections x 3 FAM1 muscles, hanging, D = 2 disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
-        "seconds_cpu_one_thread": d.seconds, "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
+        "arm": f"3 sections x 3 FAM1 muscles, hanging, D = {TIMING_DISKS} disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
+        "seed": seed, "seconds_cpu_one_thread": d.seconds, "search_window_s": d.decisions["search_window_s"], "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
         "simulated_s": d.decisions["simulated_s"], "heldout_rms_nominal_m": d.heldout_rms_nominal_m,
         "heldout_rms_refit_m": d.heldout_rms_before_m, "noise_m": d.noise_m,
         "truth": truth.name, "truth_muscle": truth.muscle, "answer": d.verdict["answer"],
         "muscle": d.effects[0]["muscle"] if d.effects else None, "heldout_rms_after_m": d.heldout_rms_after_m,
+        "probability": d.verdict["probability"], "confident": d.verdict["confident"],
+        "ambiguous": d.verdict["ambiguous"], "alternatives": d.verdict["alternatives"],
+        "candidates_heldout_rms_m": {c["name"]: c["heldout_rms_m"] for c in d.candidates},
     }  # fmt: skip
 
 
 def discretisation_case(seed, duration_s=20.0) -> dict:
-    """How far the timing case's coarse arm (D = 2 disks per section, 4 ms) is from the
-    builder's default (D = 8, its own step) under the same lab commands (the random protocol,
-    3 sections hanging, no effect): tip RMS per 5 s block between the replays, and the CPU cost
-    of one simulated second of each, side by side in this process."""
+    """How far coarse arms (D = 2 and 4 disks per section, 4 ms and 1 ms) are from the builder's
+    default (D = 8, its own step) under the same lab commands (the random protocol, 3 sections
+    hanging, no effect), and how far 4 ms is from 1 ms at the same D: tip RMS per 5 s block
+    between the replays, and the CPU cost of one simulated second of each, side by side in this
+    process."""
     rng = np.random.default_rng(seed)
 
     def spec(disks, timestep_s):
@@ -218,7 +230,8 @@ def discretisation_case(seed, duration_s=20.0) -> dict:
                                           timestep_s=timestep_s, name="arm_3x3"))  # fmt: skip
 
     rec = make_recording(spec(2, 4e-3), synth_none(), "random", rng, duration_s=duration_s, rate_Hz=100.0)
-    variants = {"D=2, 4 ms": (2, 4e-3), "D=4, 4 ms": (4, 4e-3), "D=8, builder's step": (8, None)}
+    variants = {"D=2, 4 ms": (2, 4e-3), "D=2, 1 ms": (2, 1e-3), "D=4, 4 ms": (4, 4e-3), "D=4, 1 ms": (4, 1e-3),
+                "D=8, builder's step": (8, None)}  # fmt: skip
     tips, cost = {}, {}
     for name, (disks, dt) in variants.items():
         replayer = Replayer(spec(disks, dt), rec.time_s, rec.command_Pa, threads=1)
@@ -232,10 +245,16 @@ def discretisation_case(seed, duration_s=20.0) -> dict:
         "duration_s": duration_s,
         "cpu_s_per_simulated_s": cost,
         "tip_rms_vs_default_m": {},
+        "tip_rms_4ms_vs_1ms_same_D_m": {},
     }
     for name, tip in tips.items():
         err = np.linalg.norm(tip - ref, axis=1)
         out["tip_rms_vs_default_m"][name] = [
+            float(np.sqrt(np.mean(err[(rec.time_s >= a) & (rec.time_s < b)] ** 2))) for a, b in zip(edges[:-1], edges[1:])
+        ]  # fmt: skip
+    for disks in (2, 4):  # the time step alone: 4 ms against 1 ms at the same D
+        err = np.linalg.norm(tips[f"D={disks}, 4 ms"] - tips[f"D={disks}, 1 ms"], axis=1)
+        out["tip_rms_4ms_vs_1ms_same_D_m"][f"D={disks}"] = [
             float(np.sqrt(np.mean(err[(rec.time_s >= a) & (rec.time_s < b)] ** 2))) for a, b in zip(edges[:-1], edges[1:])
         ]  # fmt: skip
     return out
@@ -327,6 +346,18 @@ def main(argv=None) -> int:
         "--timing-json", type=Path, help="take the timing case from this JSON (measured by an earlier run)"
     )
     parser.add_argument(
+        "--timing-only",
+        type=Path,
+        help="only the timing case (seed --seed + 5000, weak muscle) and further cases on the next seeds "
+        "with the truths of --timing-truths; JSON here (the first case, plus 'more_cases')",
+    )
+    parser.add_argument("--timing-truths", default="weak_muscle,pressure_lag,cross_talk")
+    parser.add_argument(
+        "--whole-search",
+        action="store_true",
+        help="search every recording whole (the coarse-to-fine window switched off), for comparison",
+    )
+    parser.add_argument(
         "--discretisation",
         type=Path,
         help="only compare the timing arm's D = 2 with the default D = 8; JSON here",
@@ -338,6 +369,18 @@ def main(argv=None) -> int:
         print(result)
         return 0
     specs = {k: arm.build_spec(v) for k, v in arms().items()}
+    if args.whole_search:
+        diagnosis.WINDOW_TRAIN_S = float("inf")
+    if args.timing_only:
+        first = timing_case(specs["3x3"], args.seed + 5000)
+        print("timing:", first, flush=True)
+        more = []
+        for i, truth_name in enumerate(args.timing_truths.split(",") if args.timing_truths else []):
+            more.append(timing_case(specs["3x3"], args.seed + 5001 + i, truth_name))
+            print("timing:", more[-1], flush=True)
+            write_json_atomic(args.timing_only, first | {"more_cases": more})
+        write_json_atomic(args.timing_only, first | {"more_cases": more})
+        return 0
     started = time.perf_counter()
     evaluation = plan_cases(args.seed, args.reps, args.reps_2)
     calibration_plan = plan_cases(args.cal_seed, args.cal_reps, args.cal_reps_2)

@@ -378,3 +378,70 @@ def test_paired_comparison_never_separates_identical_predictions():
     tip = rng.normal(size=(n, 3)) * 1e-3
     p = paired_comparison(tip, tip.copy(), np.zeros((n, 3)), np.ones(n, bool))
     assert p["t"] == 0.0 and p["t"] < p["critical_t"]
+
+
+def test_search_window_rule():
+    """The search window is the shortest head of whole blocks (a sixth of the recording each;
+    the second and fifth held out) with 10 s of training time: the first 10 s block of a 60 s
+    recording, the first three 5 s blocks of a 30 s one (blocks 1 and 3 train); none for
+    recordings with 10 s of training time or less (up to 15 s: searched whole)."""
+    from efam_mujoco.armdiag.diagnosis import search_window_s
+
+    assert search_window_s(np.arange(0, 60, 0.01)) == pytest.approx(10.0, abs=0.01)
+    assert search_window_s(np.arange(0, 30, 0.01)) == pytest.approx(15.0, abs=0.01)
+    assert search_window_s(np.arange(0, 120, 0.01)) == pytest.approx(20.0, abs=0.02)
+    for seconds in (6.0, 12.0, 15.0):
+        assert search_window_s(np.arange(0, seconds, 0.01)) is None
+
+
+def test_window_fitted_weak_muscle_equals_the_whole_fit(spec):
+    """A weak muscle (the library's form, pressure factor 0.8 on s1m2) in a 24 s recording: the
+    factor fitted on the search window (the first 16 s: blocks 1-4 of 4 s, 12 s of training rows) equals
+    the fit on every training row, and the concealed value, within the noise's scatter."""
+    from efam_mujoco.armdiag.diagnosis import WINDOW_TRAIN_S, _maker, folds, search_window_s
+    from efam_mujoco.armdiag.effects import get, refit_params
+    from efam_mujoco.armdiag.fit import fit
+
+    t = np.arange(0, 24.0, 1 / 30)
+    rng = np.random.default_rng(21)
+    knots = np.arange(0, 26, 1.5)
+    cmd = np.column_stack([np.interp(t, knots, rng.uniform(60e3, 420e3, len(knots))) for _ in range(3)])
+    whole = Replayer(spec, t, cmd)
+    measured = whole.tips([with_values(whole.nominal, gain=(1.0, 0.8, 1.0))])[0]
+    measured += rng.normal(0, 5e-4, measured.shape)
+    train, _ = folds(t, np.ones(len(t), bool))
+    window_s = search_window_s(t)
+    assert WINDOW_TRAIN_S == 10.0 and window_s == pytest.approx(16.0, abs=0.05)  # blocks of 4 s
+    head = whole.head(window_s)
+    n = len(head.time_s)
+    assert n < len(t)
+    factor = get("weak_muscle").params[:1]  # the factor alone (no drop): one well-posed number
+    make = _maker(get("weak_muscle"), whole.nominal, 1)
+    fixed = {p.key: p.start for p in refit_params(3)} | {"drop_Pa": 0.0}
+    found = {
+        name: fit(r, factor, lambda v: make(fixed | v), measured[: len(r.time_s)], train[: len(r.time_s)],
+                  iterations=3).values["pressure_factor"]
+        for name, r in (("window", head), ("whole", whole))
+    }  # fmt: skip
+    assert found["window"] == pytest.approx(0.8, abs=0.01)
+    assert found["whole"] == pytest.approx(0.8, abs=0.01)
+    assert found["window"] == pytest.approx(found["whole"], abs=0.005)
+
+
+def test_long_recording_is_searched_on_its_window_and_judged_whole(spec):
+    """A 24 s recording (a weak s1m2, orifice leak) is searched on its first 16 s only, yet the
+    diagnosis reports whole-recording replays: every tip row, held-out errors from the rows
+    beyond the window too, and names the muscle."""
+    rng = np.random.default_rng(6)
+    truth = Truth("weak_muscle", {"leak_sqrt_Pa": 130.0}, "s1m2")
+    rec = make_recording(spec, truth, "steps", rng, duration_s=24.0, rate_Hz=30.0, noise_m=5e-4)
+    d = diagnose_arm(spec, rec, threads=1, effects=("payload", "weak_muscle"))
+    assert d.decisions["search_window_s"] == pytest.approx(16.0, abs=0.1)
+    assert d.verdict["answer"] == "weak_muscle" and d.effects[0]["muscle"] == "s1m2"
+    late = rec.time_s > d.decisions["search_window_s"]
+    for tip in (d.tip_nominal, d.tip_before, d.tip_after):
+        assert tip.shape == rec.tip_m.shape and np.all(np.isfinite(tip))
+    # the identified model follows the recording beyond the window as well as inside it
+    err = np.linalg.norm(d.tip_after - rec.tip_m, axis=1)
+    inside, beyond = np.nanmean(err[~late & rec.valid]), np.nanmean(err[late & rec.valid])
+    assert beyond < 2 * inside + 1e-3 and d.heldout_rms_after_m < 0.5 * d.heldout_rms_nominal_m
