@@ -26,7 +26,7 @@ confusion matrix, and that the written MJCF (identified terms switched on) repro
 held-out blocks.
 
 Usage: python bench/bench_armdiag.py [--reps 5] [--reps-2 3] [--seed 91000] [--cal-reps 1]
-[--cal-reps-2 1] [--cal-seed 71000] [--duration 20] [--no-timing] [--out PATH]
+[--cal-reps-2 1] [--cal-seed 71000] [--duration 15] [--no-timing] [--out PATH]
 [--timing-json PATH] [--timing-only PATH [--timing-truths a,b]] [--whole-search]
 [--discretisation PATH]
 Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_reliability.png,
@@ -339,7 +339,12 @@ def main(argv=None) -> int:
         "--cal-reps-2", type=int, default=1, help="calibration cases per truth, 2-section arm"
     )
     parser.add_argument("--cal-seed", type=int, default=71000, help="calibration seeds start here (disjoint)")
-    parser.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=15.0,
+        help="seconds per recording (15 s: searched whole; longer recordings are searched on a window)",
+    )
     parser.add_argument("--no-timing", action="store_true", help="skip the 3-section timing case")
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument(
