@@ -354,17 +354,18 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
         z, second = max(pairs, key=lambda zs: zs[0])
         if z > best["expected_z"] * 1.1:
             w = best["duration_s"] + second["duration_s"]
+
+            def joined_rms(key: str, a=best, b=second) -> float:
+                """An RMS over the two tests run one after the other (time-weighted)."""
+                return math.sqrt((a[key] ** 2 * a["duration_s"] + b[key] ** 2 * b["duration_s"]) / w)
+
             best = {
                 "name": f"{best['name']}{THEN}{second['name']}",
                 "protocol": f"{best['protocol']}; then {second['protocol']}",
-                "predicted_difference_rms_N": math.sqrt(
-                    (best["predicted_difference_rms_N"] ** 2 * best["duration_s"]
-                     + second["predicted_difference_rms_N"] ** 2 * second["duration_s"]) / w),
+                "predicted_difference_rms_N": joined_rms("predicted_difference_rms_N"),
                 "predicted_difference_peak_N": max(best["predicted_difference_peak_N"],
                                                    second["predicted_difference_peak_N"]),
-                "unabsorbed_rms_N": math.sqrt(
-                    (best["unabsorbed_rms_N"] ** 2 * best["duration_s"]
-                     + second["unabsorbed_rms_N"] ** 2 * second["duration_s"]) / w),
+                "unabsorbed_rms_N": joined_rms("unabsorbed_rms_N"),
                 "expected_chi2": best["expected_chi2"] + second["expected_chi2"],
                 "blocks": best["blocks"] + second["blocks"], "expected_z": z, "duration_s": w,
             }  # fmt: skip
