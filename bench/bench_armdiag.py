@@ -8,7 +8,8 @@ recording and the nominal arm model.
 
 Arms (the physical, segmented arm with the exact arc geometry of its segments; few disks for
 speed, the builder's default is 8 per section at a 1 ms step): 1 section of 3 FAM1 muscles
-upright (4 disks) and 2 sections hanging (2 disks per section), both at a 4 ms time step (stable
+upright and 2 sections hanging, 4 disks per section (a hanging arm at 2 disks per section is
+fragile: models a few kPa apart part by decimetres, see ``--discretisation``), 4 ms time step (stable
 at the arm's damping, limit about 9 ms; the builder warns that it is within less than its 2x
 margin); the timing case is a 3-section hanging arm (4 disks per section, 4 ms), 60 s at 100 Hz,
 on one thread, CPU time of this process (the diagnosis alone, not the making of the recording).
@@ -60,10 +61,10 @@ from efam_mujoco.progress import progress  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "armdiag.json"
-#: disks per section of the timing arm: D = 2 is not a credible 3-section arm (its tip departs
+#: disks per section of every bench arm: D = 2 is not a credible hanging arm (its tip departs
 #: 56-219 mm RMS from the builder's D = 8, and two models a few kPa apart part by up to 390 mm
 #: for seconds: see docs/armdiag.md); D = 4 at 4 ms is within 2.5-3.5 mm of D = 4 at 1 ms
-TIMING_DISKS = 4
+DISKS = 4
 FIGURES = ROOT / "docs" / "figures"
 
 
@@ -71,8 +72,8 @@ def arms() -> dict:
     """The benchmark's arm models (nominal specs)."""
     return {
         "1x3": arm.ArmSpec(sections=(arm.paper_section(disks=4),), timestep_s=4e-3, name="arm_1x3"),
-        "2x3": arm.ArmSpec(sections=(arm.paper_section(disks=2),) * 2, orientation="hanging", timestep_s=4e-3, name="arm_2x3"),
-        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=TIMING_DISKS),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
+        "2x3": arm.ArmSpec(sections=(arm.paper_section(disks=DISKS),) * 2, orientation="hanging", timestep_s=4e-3, name="arm_2x3"),
+        "3x3": arm.ArmSpec(sections=(arm.paper_section(disks=DISKS),) * 3, orientation="hanging", timestep_s=4e-3, name="arm_3x3"),
     }  # fmt: skip
 
 
@@ -205,7 +206,7 @@ def timing_case(spec, seed, truth_name="weak_muscle") -> dict:
     wall = time.perf_counter()
     d = diagnose_arm(spec, rec, threads=1)
     return {
-        "arm": f"3 sections x 3 FAM1 muscles, hanging, D = {TIMING_DISKS} disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
+        "arm": f"3 sections x 3 FAM1 muscles, hanging, D = {DISKS} disks per section, arc geometry, 4 ms time step", "samples": len(rec), "duration_s": 60.0, "rate_Hz": 100.0,
         "seed": seed, "seconds_cpu_one_thread": d.seconds, "search_window_s": d.decisions["search_window_s"], "seconds_wall": time.perf_counter() - wall, "rollouts": d.decisions["rollouts"],
         "simulated_s": d.decisions["simulated_s"], "heldout_rms_nominal_m": d.heldout_rms_nominal_m,
         "heldout_rms_refit_m": d.heldout_rms_before_m, "noise_m": d.noise_m,
@@ -342,8 +343,8 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--duration",
         type=float,
-        default=15.0,
-        help="seconds per recording (15 s: searched whole; longer recordings are searched on a window)",
+        default=30.0,
+        help="seconds per recording (up to 15 s: searched whole; longer ones are searched on a window)",
     )
     parser.add_argument("--no-timing", action="store_true", help="skip the 3-section timing case")
     parser.add_argument("--out", type=Path, default=RESULTS)

@@ -352,6 +352,36 @@ def test_paired_comparison_finds_a_consistently_worse_hypothesis():
     assert np.mean(found) >= 0.9 and not any(reverse)
 
 
+def test_choice_follows_the_paired_test_against_none():
+    """The parameter penalty ranks ``none`` first, yet the runner-up's held-out error is 0.8 x
+    none's in every segment: the data have separated them, so the effect is the answer (not
+    confident: its probability is unchanged), not ``none`` and not an ambiguous pair. With the
+    two equally good, ``none`` stays the answer and is not called ambiguous; an effect answer
+    against an equally good runner-up is."""
+    from efam_mujoco.armdiag.diagnosis import choose
+
+    rng = np.random.default_rng(14)
+    n = 800
+    scale = np.full(n, 1e-3)
+    held, measured = np.ones(n, bool), np.zeros((n, 3))
+    better = _smooth_errors(rng, n, 20, scale)
+    worse = 1.25 * _smooth_errors(rng, n, 20, scale)
+    prob = {"none": 0.6, "payload": 0.4}
+    first, second, paired, ambiguous, overruled = choose(
+        prob, {"none": worse, "payload": better}, measured, held, at_floor=False
+    )
+    assert (first, second, ambiguous, overruled) == ("payload", "none", False, True)
+    assert paired["t"] > paired["critical_t"]
+    # at the noise floor that question has been asked already: none stays
+    first, _, _, ambiguous, overruled = choose(prob, {"none": worse, "payload": better}, measured, held, True)
+    assert (first, ambiguous, overruled) == ("none", False, False)
+    equal = {"none": better, "payload": better + 1e-9 * rng.normal(size=(n, 3))}
+    first, _, _, ambiguous, _ = choose(prob, equal, measured, held, False)
+    assert (first, ambiguous) == ("none", False)
+    first, _, _, ambiguous, _ = choose({"payload": 0.6, "none": 0.4}, equal, measured, held, False)
+    assert (first, ambiguous) == ("payload", True)
+
+
 def test_head_replay_is_the_start_of_the_full_replay(spec):
     """The screen's short replay is the same simulation cut short: its tips equal the full
     replay's first rows exactly (same settling, same steps)."""

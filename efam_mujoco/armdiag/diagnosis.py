@@ -18,8 +18,9 @@
 5. **Ambiguity** is a paired held-out comparison (:func:`paired_comparison`): the held-out rows
    cut into contiguous segments of at least the loss difference's correlation length, the
    runner-up's per-segment log error ratio over the best's, a one-sided Student t; ambiguous
-   when the runner-up is not worse at the 95 % level (or, with ``none`` first, when it is better
-   at that level); confident when the probability is >= 0.8 and it is not ambiguous.
+   when the runner-up is not worse at the 95 % level. With ``none`` first and an effect second
+   that is *better* at that level, the data have spoken for the effect: it is the answer
+   (:func:`choose`). Confident when the probability is >= 0.8 and it is not ambiguous.
 6. **Next experiment** for every ambiguous answer (``design.recommend``).
 
 **Coarse to fine in time** (long recordings). Steps 2 and 3 (the re-fit, every start grid,
@@ -277,13 +278,7 @@ def diagnose_arm(
     if at_floor:
         rest = (1 - P_NONE_AT_FLOOR) / max(1, len(prob) - 1)
         prob = {"none": P_NONE_AT_FLOOR} | {k: rest for k in prob if k != "none"}
-    ranked = list(prob)
-    first, second = ranked[0], ranked[1]
-    paired = paired_comparison(tips_of[first], tips_of[second], measured, held)
-    if first == "none":  # nothing pays for its parameters: ambiguous only if the runner-up is clearly better
-        ambiguous = not at_floor and paired["t"] < -paired["critical_t"]
-    else:  # the runner-up (another effect, or none) is not clearly worse on the held-out segments
-        ambiguous = paired["t"] < paired["critical_t"]
+    first, second, paired, ambiguous, beats_none = choose(prob, tips_of, measured, held, at_floor)
     confident = prob[first] >= CONFIDENT and not ambiguous
     verdict = {
         "answer": first, "probability": prob[first], "confident": confident, "ambiguous": ambiguous,
@@ -291,7 +286,8 @@ def diagnose_arm(
         # no library term pays, yet the re-fitted model stays well above the marker noise
         "unexplained": first == "none" and heldout_none > 3 * noise,
         "reason": "the re-fitted model reproduces the held-out blocks at the noise floor" if at_floor else
-        "held-out likelihood with a parameter penalty",
+        "better than none on the held-out segments (paired test), though its parameter penalty ranks "
+        "none first" if beats_none else "held-out likelihood with a parameter penalty",
     }  # fmt: skip
     candidates = []
     for name in ranked:
@@ -377,6 +373,30 @@ def probabilities(score: dict, temperature: float | None = None) -> dict:
     weights = {k: math.exp((v - top) / T) for k, v in score.items()}
     total = sum(weights.values())
     return {k: w / total for k, w in sorted(weights.items(), key=lambda kv: -kv[1])}
+
+
+def choose(prob: dict, tips_of: dict, measured, held, at_floor: bool) -> tuple[str, str, dict, bool, bool]:
+    """(answer, runner-up, their paired comparison, ambiguous, overruled) from the probabilities
+    (largest first) and the paired held-out test (:func:`paired_comparison`, answer against
+    runner-up).
+
+    The answer is the most probable hypothesis, with one exception: when that is ``none``, the
+    model is not at the noise floor, and the runner-up is better than ``none`` on the held-out
+    segments beyond chance, the data have separated the two in the effect's favour (only its
+    parameter penalty ranks it second): the effect is the answer (``overruled``; its probability
+    stays as computed, below the confidence bar). At the noise floor the same question was
+    already asked of the best effect (``at_floor`` is False when it won). An effect answer is
+    ambiguous when the runner-up is not clearly worse; a ``none`` answer never is (nothing
+    separated from it does better)."""
+    ranked = list(prob)
+    first, second = ranked[0], ranked[1]
+    paired = paired_comparison(tips_of[first], tips_of[second], measured, held)
+    overruled = first == "none" and not at_floor and paired["t"] < -paired["critical_t"]
+    if overruled:
+        first, second = second, first
+        paired = paired_comparison(tips_of[first], tips_of[second], measured, held)
+    ambiguous = first != "none" and paired["t"] < paired["critical_t"]
+    return first, second, paired, ambiguous, overruled
 
 
 def paired_comparison(tip_a, tip_b, measured, held) -> dict:
