@@ -290,7 +290,7 @@ def diagnose_arm(
         "none first" if beats_none else "held-out likelihood with a parameter penalty",
     }  # fmt: skip
     candidates = []
-    for name in ranked:
+    for name in prob:  # largest probability first
         f = base if name == "none" else fits[name][0]
         candidates.append({
             "name": name, "probability": prob[name], "heldout_rms_m": math.sqrt(sse_held[name] / n_held),
