@@ -292,14 +292,14 @@ def confusion_figure(matrix, path):
     plt.close(fig)
 
 
-def plan_cases(seed: int, reps_1: int, reps_2: int) -> list[tuple]:
+def plan_cases(seed: int, reps_1: int, reps_2: int, truths: tuple[str, ...] = TRUTHS) -> list[tuple]:
     """(arm, truth, protocol, seed) for every case: each truth ``reps_1`` times on the 1-section
     arm and ``reps_2`` times on the 2-section arm, protocols cycled."""
     per_arm = []
     for arm_name, reps in (("1x3", reps_1), ("2x3", reps_2)):
         cases = []
         for rep in range(reps):
-            for i, truth in enumerate(TRUTHS):
+            for i, truth in enumerate(truths):
                 case_seed = seed + 1000 * (arm_name == "2x3") + 20 * rep + i
                 cases.append((arm_name, truth, PROTOCOLS[(i + rep * 2) % len(PROTOCOLS)], case_seed))
         per_arm.append(cases)
@@ -359,6 +359,9 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--timing-truths", default="weak_muscle,pressure_lag,cross_talk")
     parser.add_argument(
+        "--truths", help="evaluate only these concealed truths (comma list), e.g. a larger weak_muscle sample"
+    )
+    parser.add_argument(
         "--whole-search",
         action="store_true",
         help="search every recording whole (the coarse-to-fine window switched off), for comparison",
@@ -388,7 +391,10 @@ def main(argv=None) -> int:
         write_json_atomic(args.timing_only, first | {"more_cases": more})
         return 0
     started = time.perf_counter()
-    evaluation = plan_cases(args.seed, args.reps, args.reps_2)
+    truths = tuple(args.truths.split(",")) if args.truths else TRUTHS
+    if set(truths) - set(TRUTHS):
+        raise SystemExit(f"--truths: unknown {sorted(set(truths) - set(TRUTHS))}; known: {', '.join(TRUTHS)}")
+    evaluation = plan_cases(args.seed, args.reps, args.reps_2, truths)
     calibration_plan = plan_cases(args.cal_seed, args.cal_reps, args.cal_reps_2)
     if {c[3] for c in evaluation} & {c[3] for c in calibration_plan}:
         raise SystemExit("calibration and evaluation seeds overlap")
