@@ -137,6 +137,8 @@ def score(rows) -> dict:
         "false_alarms": float(np.mean([r["answer"] != "none" for r in clean])) if clean else None,
         "ambiguous_share": float(np.mean([r["ambiguous"] for r in effect])) if effect else None,
         "weak_muscle_named_right": float(np.mean([r["muscle"] == r["truth_muscle"] for r in weak])) if weak else None,
+        # stricter: of every concealed weak muscle, named weak_muscle on the right muscle
+        "weak_muscle_right_of_all": float(np.mean([r["answer"] == "weak_muscle" and r["muscle"] == r["truth_muscle"] for r in effect if r["truth"] == "weak_muscle"])) if any(r["truth"] == "weak_muscle" for r in effect) else None,
         "median_heldout_reduction_vs_as_built": float(np.median(red_nom)) if effect else None,
         "median_heldout_reduction_vs_refit": float(np.median(red_refit)) if effect else None,
         "median_mjcf_over_diagnosis_heldout": float(np.median([r["heldout_rms_mjcf_m"] / r["heldout_rms_after_m"] for r in rows])),

@@ -8,7 +8,8 @@
    (start grid and one local step; the four with the smallest training error then get the rest
    of the local search);
    per-muscle effects are screened on their start grid for every muscle (on the first
-   :data:`SCREEN_S` of the recording), the best muscle is then fitted on every training row.
+   :data:`SCREEN_S` of the recording), the :data:`SCREENED_OPTIONS` best then get a local step
+   on every training row and the better is kept.
 4. **Choice.** Each hypothesis h (``none`` = the re-fit alone) gets a held-out score
    ``-n_eff/2 log SSE_h - k_h/2 log n_eff`` (k_h: its parameters, plus the log of the number of
    ways to place it: muscles, or muscle pairs; n_eff: held-out samples divided by the residual's
@@ -81,9 +82,9 @@ SEGMENTS_MIN, SEGMENTS_MAX = 8, 32
 T_SURE = 1e6
 PAIRED_LEVEL = 0.95
 #: probabilities are exp(score / T) normalised: T fitted (maximum likelihood of the concealed truth)
-#: on 18 calibration recordings of 30 s (9 per bench arm), seeds 74000+, disjoint from the benchmark's
+#: on 18 calibration recordings of 30 s (9 per bench arm), seeds 76000+, disjoint from the benchmark's
 #: evaluation seeds (``python bench/bench_armdiag.py``, "calibration" in bench/results/armdiag.json)
-PROBABILITY_TEMPERATURE = 5.49
+PROBABILITY_TEMPERATURE = 5.01
 #: P(none is right) when the re-fitted model is already at the noise floor (same calibration set:
 #: 2 of 2 at-floor recordings were clean, Laplace-smoothed (2 + 1) / (2 + 2))
 P_NONE_AT_FLOOR = 0.75
