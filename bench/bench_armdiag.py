@@ -27,7 +27,7 @@ confusion matrix, and that the written MJCF (identified terms switched on) repro
 held-out blocks.
 
 Usage: python bench/bench_armdiag.py [--reps 5] [--reps-2 3] [--seed 91000] [--cal-reps 1]
-[--cal-reps-2 1] [--cal-seed 71000] [--duration 15] [--no-timing] [--out PATH]
+[--cal-reps-2 1] [--cal-seed 71000] [--duration 30] [--truths a,b] [--no-timing] [--out PATH]
 [--timing-json PATH] [--timing-only PATH [--timing-truths a,b]] [--whole-search]
 [--discretisation PATH]
 Writes bench/results/armdiag.json and docs/figures/armdiag_confusion.png, armdiag_reliability.png,
@@ -118,7 +118,8 @@ def score(rows) -> dict:
     effect = [r for r in rows if r["truth"] != "none"]
     clean = [r for r in rows if r["truth"] == "none"]
     confident = [r for r in rows if r["confident"]]
-    weak = [r for r in effect if r["truth"] == "weak_muscle" and r["answer"] == "weak_muscle"]
+    weak_truth = [r for r in effect if r["truth"] == "weak_muscle"]
+    weak = [r for r in weak_truth if r["answer"] == "weak_muscle"]
     red_nom = [1 - r["heldout_rms_after_m"] / r["heldout_rms_nominal_m"] for r in effect]
     red_refit = [1 - r["heldout_rms_after_m"] / r["heldout_rms_refit_m"] for r in effect]
     labels = list(TRUTHS)
@@ -138,7 +139,7 @@ def score(rows) -> dict:
         "ambiguous_share": float(np.mean([r["ambiguous"] for r in effect])) if effect else None,
         "weak_muscle_named_right": float(np.mean([r["muscle"] == r["truth_muscle"] for r in weak])) if weak else None,
         # stricter: of every concealed weak muscle, named weak_muscle on the right muscle
-        "weak_muscle_right_of_all": float(np.mean([r["answer"] == "weak_muscle" and r["muscle"] == r["truth_muscle"] for r in effect if r["truth"] == "weak_muscle"])) if any(r["truth"] == "weak_muscle" for r in effect) else None,
+        "weak_muscle_right_of_all": sum(r["muscle"] == r["truth_muscle"] for r in weak) / len(weak_truth) if weak_truth else None,
         "median_heldout_reduction_vs_as_built": float(np.median(red_nom)) if effect else None,
         "median_heldout_reduction_vs_refit": float(np.median(red_refit)) if effect else None,
         "median_mjcf_over_diagnosis_heldout": float(np.median([r["heldout_rms_mjcf_m"] / r["heldout_rms_after_m"] for r in rows])),

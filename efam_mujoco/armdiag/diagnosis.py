@@ -520,7 +520,8 @@ def _fit_effect(effect, replayer, base: FitResult, nominal: Knobs, measured, tra
     # the SCREENED_OPTIONS best screened options get a local step each (jointly with the re-fit's
     # parameters), the best after it is kept: a screen holds the re-fit's values fixed, and where
     # the re-fit has leaned on its bounds to take up the effect (a leak answered by the common
-    # offset and lag) the right muscle can screen second (an option may be a tuple: sorted by key)
+    # offset and lag) the right muscle can screen second (options are ints, None or tuples: they
+    # are ranked through their screens' errors, never compared with each other)
     ranked = sorted(screens, key=lambda m: screens[m].sse_train)[:SCREENED_OPTIONS]
     stepped = {}
     for option in ranked:

@@ -99,12 +99,21 @@ def blocks(labels: Labels, n: int) -> np.ndarray:
     pieces = max(1, int(math.ceil(MIN_BLOCKS / max(n_half, 1))))
     if pieces == 1:
         return half.copy()
-    out = np.zeros(n, dtype=int)
+    return cut_runs(half, pieces)
+
+
+def cut_runs(half: np.ndarray, pieces: int, skip_empty: bool = False) -> np.ndarray:
+    """Block index per sample: every contiguous run of ``half`` (a half-cycle) cut into
+    ``pieces`` contiguous pieces, numbered in time order; ``skip_empty``: a piece with no sample
+    (a run shorter than ``pieces``) takes no number (the numbers then count the blocks)."""
+    out = np.zeros(len(half), dtype=int)
     edges = np.flatnonzero(np.diff(np.r_[-1, half, -2]))
     k = 0
     for s0, s1 in zip(edges[:-1], edges[1:]):
         cuts = np.linspace(s0, s1, pieces + 1).round().astype(int)
         for a, b in zip(cuts[:-1], cuts[1:]):
+            if skip_empty and b <= a:
+                continue
             out[a:b] = k
             k += 1
     return out

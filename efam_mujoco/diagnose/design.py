@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .confidence import MIN_BLOCKS
+from .confidence import MIN_BLOCKS, cut_runs
 from .effects import Context, EffectModel
 from .segment import label
 
@@ -279,16 +279,7 @@ def blocks_of(
     half = labels.half_cycle if labels.half_cycle is not None else np.zeros(ctx.n, dtype=int)
     n_half = int(half.max()) + 1 if ctx.n else 0
     pieces = max(1, int(math.ceil(MIN_BLOCKS / max(n_half + half_cycles_before, 1))))
-    out = np.zeros(ctx.n, dtype=int)
-    edges = np.flatnonzero(np.diff(np.r_[-1, half, -2]))
-    k = 0
-    for s0, s1 in zip(edges[:-1], edges[1:]):
-        cuts = np.linspace(s0, s1, pieces + 1).round().astype(int)
-        for a, b in zip(cuts[:-1], cuts[1:]):
-            if b > a:
-                out[a:b] = k
-                k += 1
-    return out
+    return cut_runs(half, pieces, skip_empty=True)
 
 
 def decision_z(block_gap: np.ndarray, noise_N: float, before=None) -> float:
