@@ -42,7 +42,15 @@ import numpy as np  # noqa: E402
 
 from efam_mujoco.diagnose import diagnose  # noqa: E402
 from efam_mujoco.diagnose import virtual_bench as V  # noqa: E402
-from efam_mujoco.diagnose.confidence import CALIBRATION, CALIBRATION_SEEDS, OUTSIDE, Calibration, verdict  # noqa: E402
+from efam_mujoco.diagnose.confidence import (  # noqa: E402
+    CALIBRATION,
+    CALIBRATION_SEEDS,
+    NONE_Z_CLIP,
+    OUTSIDE,
+    Calibration,
+    best_effect_z,
+    verdict,
+)
 from efam_mujoco.diagnose.design import experiment, stroke_speed  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
@@ -223,19 +231,20 @@ def print_summary(s: dict) -> None:
 def fit_calibration(rows: list[dict]) -> Calibration:
     """The two logistic maps of ``confidence`` by maximum likelihood on the calibration cases:
     (a, b, c) from (excess cut, data-driven gain) to 'the best library term is the physics', over
-    the cases whose raw winner is an effect (weighted by its win fraction); (an, bn, cn) from
-    (excess over the noise, data-driven gain) to 'nothing is missing', over those won by none."""
+    the cases whose raw winner is an effect (weighted by its win fraction); (an, bn, cn, dn) from
+    (excess over the noise, data-driven gain, best effect's separation from none / 5) to 'nothing
+    is missing', over those won by none (weighted by none's win fraction)."""
     from scipy.optimize import minimize
 
     def logistic_fit(X, w0):
+        # X columns: features..., right (0/1), weight
         def nll(w):
-            z = w[0] + w[1] * X[:, 0] + w[2] * X[:, 1]
+            z = w[0] + X[:, : len(w) - 1] @ w[1:]
             p = np.clip(1 / (1 + np.exp(-z)), 1e-9, 1 - 1e-9)
-            return -np.sum(X[:, 3] * (X[:, 2] * np.log(p) + (1 - X[:, 2]) * np.log(1 - p))) + 1e-3 * np.sum(
-                w * w
-            )
+            right, weight = X[:, -2], X[:, -1]
+            return -np.sum(weight * (right * np.log(p) + (1 - right) * np.log(1 - p))) + 1e-3 * np.sum(w * w)
 
-        return minimize(nll, np.array(w0), method="Nelder-Mead", options={"maxiter": 4000}).x
+        return minimize(nll, np.array(w0), method="Nelder-Mead", options={"maxiter": 8000, "fatol": 1e-10}).x
 
     effect_rows, none_rows = [], []
     for r in rows:
@@ -250,13 +259,17 @@ def fit_calibration(rows: list[dict]) -> Calibration:
                     (np.clip(r["excess_cut"], -1, 1), np.clip(r["dd_gain"], 0, 1), float(right), weight)
                 )
         if raw.get("none", 0) > 0:
-            none_rows.append((np.clip(r["excess"], 0, 1), np.clip(r["dd_gain_none"], 0, 1),
+            effect_z = np.clip(
+                best_effect_z((r.get("evidence") or {}).get("block_sse")), -NONE_Z_CLIP, NONE_Z_CLIP
+            )
+            none_rows.append((np.clip(r["excess"], 0, 1), np.clip(r["dd_gain_none"], 0, 1), effect_z / 5.0,
                               float(r["kind"] == "clean" or not r.get("shows", True)), raw["none"]))  # fmt: skip
     print(f"calibration rows: {len(effect_rows)} won by an effect, {len(none_rows)} by none")
     w = logistic_fit(np.array(effect_rows), [0.0, 3.0, -10.0])
-    wn = logistic_fit(np.array(none_rows), [3.0, 0.0, -10.0])
+    wn = logistic_fit(np.array(none_rows), [3.0, 0.0, -10.0, 0.0])
     return Calibration(concentration=CALIBRATION.concentration, a=float(w[0]), b=float(w[1]), c=float(w[2]),
-                       tie_margin=CALIBRATION.tie_margin, an=float(wn[0]), bn=float(wn[1]), cn=float(wn[2]))  # fmt: skip
+                       tie_margin=CALIBRATION.tie_margin, an=float(wn[0]), bn=float(wn[1]), cn=float(wn[2]),
+                       dn=float(wn[3]))  # fmt: skip
 
 
 def rescore(rows: list[dict], cal: Calibration) -> list[dict]:
@@ -424,8 +437,10 @@ def main(argv=None) -> int:
             print(f"figure: {fig}")
         return 0
     if args.calibrate:
-        cases = plan(args.per_family, CALIBRATION_SEEDS[0])  # 25 per family: seeds 70000-70099
-        cases = [c for c in cases if c[0] <= CALIBRATION_SEEDS[1]]
+        # the benchmark's own mix of kinds: a plan cut short after its first seeds would hold the
+        # interleaving's early rows (every kind in turn), far more clean and two-effect cases
+        n_cal = CALIBRATION_SEEDS[1] - CALIBRATION_SEEDS[0] + 1
+        cases = plan(n_cal // len(V.FAMILIES), CALIBRATION_SEEDS[0])
         rows = run(cases, args.jobs, try_next=False)
         cal = fit_calibration(rows)
         summary = summarise(rescore(rows, cal))
