@@ -9,7 +9,17 @@ import pytest
 from efam_mujoco import load_muscle
 from efam_mujoco.diagnose import diagnose
 from efam_mujoco.diagnose import virtual_bench as V
-from efam_mujoco.diagnose.confidence import OUTSIDE, block_sse, bootstrap, paired_log_z, paired_z, verdict
+from efam_mujoco.diagnose.confidence import (
+    OUTSIDE,
+    best_effect_z,
+    block_sse,
+    bootstrap,
+    head_to_head,
+    none_probability,
+    paired_log_z,
+    paired_z,
+    verdict,
+)
 from efam_mujoco.diagnose.design import candidates, recommend, unabsorbed
 from efam_mujoco.diagnose.effects import Context, EffectModel
 from efam_mujoco.diagnose.model import _deadband_hi
@@ -173,6 +183,51 @@ def test_two_effects_are_ambiguous_only_when_the_paired_test_cannot_separate_the
     v = verdict({"a": 0.7, "b": 0.3}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=apart,
                 dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
     assert v.answer == "a" and not v.ambiguous and v.tentative and "tentative" in v.words()
+
+
+def test_a_pair_the_bootstrap_tells_apart_is_not_called_ambiguous():
+    # the error one hypothesis removes sits in 3 of 40 blocks (a drift at the end of a test):
+    # there the other is 25 x the noise, elsewhere both are at the noise (+-3 %). The per-block
+    # log-ratio averages 37 near-zero values with 3 of ln 25 = 3.2: mean 0.24 over a standard
+    # error of about 0.85 / sqrt(40) = 0.13, z ~ 1.8 < 2, its spread hides the advantage; the head-to-head bootstrap over the same blocks, weighing blocks by their error,
+    # finds the first better in practically every draw: the two are told apart
+    rng = np.random.default_rng(5)
+    a = 1.0 + 0.03 * rng.normal(size=40)
+    b = 1.0 + 0.03 * rng.normal(size=40)
+    b[[37, 38, 39]] = 25.0
+    sse = {"none": b * 1.2, "drift": a, "viscoelasticity": b}
+    assert abs(paired_log_z(sse["viscoelasticity"], sse["drift"])) < 2.0
+    assert head_to_head(sse, "drift", "viscoelasticity") < 0.01
+    assert head_to_head(sse, "viscoelasticity", "drift") > 0.99
+    v = verdict({"drift": 0.97, "viscoelasticity": 0.03}, excess_cut=0.3, dd_gain=0.05, n_blocks=40,
+                block_sse=sse, dd_z=0.0, dd_z_none=0.0, excess_left=0.1)  # fmt: skip
+    assert v.answer == "drift" and not v.confident  # the map doubts the name ...
+    assert not v.ambiguous and v.tentative  # ... not the pair
+    # the same pair with equal errors in every block: the bootstrap splits them, ambiguous
+    even = {"none": a * 1.5, "drift": a, "viscoelasticity": a * (1 + 0.01 * rng.normal(size=40))}
+    assert 0.2 < head_to_head(even, "drift", "viscoelasticity") < 0.8
+    v = verdict({"drift": 0.55, "viscoelasticity": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40,
+                block_sse=even, dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    assert v.ambiguous
+
+
+def test_none_is_less_sure_when_an_effect_comes_close_on_every_block():
+    # the best effect's separation from none is the paired log-ratio z of the effect against
+    # none after the relevance margin: an effect 10 % better in every block (RMS 5 %, over the
+    # 3 % margin) is clearly separated; one 10 % worse is clearly not
+    rng = np.random.default_rng(6)
+    base = 1.0 + 0.05 * rng.random(40)
+    closer = {"none": base * 1.10, "end_effects": base, "friction": base * 1.3}
+    further = {"none": base, "end_effects": base * 1.10, "friction": base * 1.3}
+    assert best_effect_z(closer) > 5 and best_effect_z(further) < -5
+    assert best_effect_z(None) == 0.0
+    from efam_mujoco.diagnose.confidence import CALIBRATION
+
+    if CALIBRATION.dn != 0.0:  # the fitted weight says how much; its sign must be the physics'
+        assert CALIBRATION.dn < 0
+        assert none_probability(0.05, 0.0, effect_z=best_effect_z(closer)) < none_probability(
+            0.05, 0.0, effect_z=best_effect_z(further)
+        )
 
 
 # ---------------------------------------------------------------------------- end to end

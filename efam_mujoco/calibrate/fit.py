@@ -494,7 +494,10 @@ def eq14_table(points: ComparisonPoints, model_tension: np.ndarray) -> dict[str,
     ``blocked`` is the paper's near-blocked row (eps = 5e-4), ``k/n`` the Eq. 14 points and
     ``eq14`` Eq. 14 itself: the mean over pressures of the mean over k = 1..n.
     """
-    rel = np.abs(points.tension_N - model_tension) / np.abs(points.tension_N) * 100.0
+    # a comparison point at exactly zero tension (a slack muscle) has no relative error: it is
+    # inf here, and eq14_value drops non-finite levels (no warning: it is expected, not a fault)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(points.tension_N - model_tension) / np.abs(points.tension_N) * 100.0
     table: dict[str, float] = {}
     for k in range(0, points.n + 1):
         at = points.k == k

@@ -47,10 +47,16 @@ answer is the most probable hypothesis; it is *confident* when its probability i
 *cannot be separated* when the paired test over blocks of the log-ratio of their held-out
 squared errors (``paired_log_z``: each block's held-out Gaussian log-likelihood difference with
 the block's own noise variance profiled out, against its spread between blocks) gives
-``abs(z) < Z_SEPARATE``. The log-ratio, not the difference, is averaged because a model error is
+``abs(z) < Z_SEPARATE``, and the Bayesian bootstrap over the same blocks, the two alone
+(``head_to_head``), leaves the runner-up at least ``SHARE_SEPARATE`` of the draws (and the
+answer too). The log-ratio, not the difference, is averaged because a model error is
 rarely even over a test: a drift or a softening is large in a few blocks and small in the rest,
 and differences of squared error then have a heavy tail whose spread hides a consistent
-advantage (the raw difference test is kept as ``paired_z`` for the data-driven gain); a library hypothesis and ``outside the library`` cannot be separated when
+advantage (the raw difference test is kept as ``paired_z`` for the data-driven gain). The
+bootstrap weighs blocks by their error instead; when it alone tells the two apart (a large
+error in a few blocks that one hypothesis removes), the answer's doubt is about its name (the
+probability map), not about the runner-up, and the report does not call it ambiguous. A library
+hypothesis and ``outside the library`` cannot be separated when
 their posterior odds are below ``ODDS_SEPARATE`` (a Bayes factor under 3, "not worth more than a
 bare mention"). Only then is the result *ambiguous* and both are named (``design`` then proposes
 the experiment that separates them); an answer neither confident nor ambiguous is *tentative*:
@@ -73,6 +79,7 @@ CONFIDENT = 0.8
 PAIR = 0.0  # any split between the best two that leaves the first under CONFIDENT is ambiguous
 OUTSIDE = "outside_library"
 Z_SEPARATE = 2.0  # paired z over blocks: two hypotheses this far apart are told apart
+SHARE_SEPARATE = 0.025  # head-to-head bootstrap: a runner-up winning under 2.5 % of draws is told apart
 ODDS_SEPARATE = 3.0  # posterior odds a named hypothesis needs over 'outside' to be told apart
 DD_MIN_GAIN = 0.03  # the data-driven correction must lower the held-out RMS by 3 % ...
 EXCESS_UNEXPLAINED = 0.5  # ... or the held-out mean square stand 2x the noise's (RMS x 1.41)
@@ -86,14 +93,14 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.203  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 5.251
-    c: float = -7.933
+    a: float = -1.922  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 4.819
+    c: float = -7.852
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = 2.339  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -7.842
-    cn: float = -7.964
-    dn: float = 0.0  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = -1.166  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -4.876
+    cn: float = -4.404
+    dn: float = -3.169  # weight of the best effect's paired separation from none (``best_effect_z``)
 
 
 CALIBRATION = Calibration()
@@ -134,14 +141,23 @@ def bootstrap(residuals: dict[str, np.ndarray], block: np.ndarray, margin: float
     by the relevance margin). A draw in which the runner-up's held-out RMS is within
     ``tie_margin`` of the winner's is a tie: half a win to each. ``residuals`` maps hypothesis ->
     held-out residual per sample."""
-    names = list(residuals)
     nb = int(block.max()) + 1
-    sse = np.stack(
-        [np.bincount(block, weights=np.asarray(residuals[h], float) ** 2, minlength=nb) for h in names]
-    )
+    sse = {
+        h: np.bincount(block, weights=np.asarray(r, float) ** 2, minlength=nb) for h, r in residuals.items()
+    }
     keep = np.bincount(block, minlength=nb) > 0
-    sse = sse[:, keep]
-    penalty = np.array([1.0 if h == "none" else 1.0 / (1.0 - margin) ** 2 for h in names])
+    return bootstrap_blocks(
+        {h: v[keep] for h, v in sse.items()}, margin, concentration, seed, draws, tie_margin
+    )
+
+
+def bootstrap_blocks(block_sse: dict[str, np.ndarray], margin: float = MIN_GAIN, concentration: float = 1.0,
+                     seed: int = 0, draws: int = DRAWS, tie_margin: float = 0.0) -> dict[str, float]:  # fmt: skip
+    """:func:`bootstrap` on the held-out squared error already summed per block (hypothesis ->
+    one value per block, the same blocks for all)."""
+    names = list(block_sse)
+    sse = np.stack([np.asarray(block_sse[h], float) for h in names])
+    penalty = np.array([_penalty(h, margin) for h in names])
     rng = np.random.default_rng(seed)
     w = rng.gamma(concentration, 1.0, size=(draws, sse.shape[1]))
     totals = (w @ sse.T) * penalty  # draws x hypotheses
@@ -153,6 +169,17 @@ def bootstrap(residuals: dict[str, np.ndarray], block: np.ndarray, margin: float
     wins = np.bincount(first, weights=np.where(tie, 0.5, 1.0), minlength=len(names))
     wins += np.bincount(second[tie], minlength=len(names)) * 0.5
     return {h: float(wins[i] / draws) for i, h in enumerate(names)}
+
+
+def head_to_head(block_sse: dict, a: str, b: str, cal: Calibration | None = None) -> float | None:
+    """Share of Bayesian-bootstrap draws over blocks (:func:`bootstrap_blocks`, the calibrated
+    concentration and tie margin) in which ``b`` predicts unseen blocks better than ``a``, the two
+    alone. Near 0 or 1: the blocks tell the two apart. None when either was not scored."""
+    if a not in block_sse or b not in block_sse:
+        return None
+    cal = cal or CALIBRATION
+    pair = {a: block_sse[a], b: block_sse[b]}
+    return bootstrap_blocks(pair, concentration=cal.concentration, tie_margin=cal.tie_margin)[b]
 
 
 def block_sse(residual: np.ndarray, block: np.ndarray) -> np.ndarray:
@@ -361,8 +388,14 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     elif OUTSIDE in (answer, second):
         ambiguous = p2 * ODDS_SEPARATE > p1
     else:
+        # two library hypotheses are told apart when either view of the blocks does: the paired
+        # log-ratio test (every block weighs the same) or the bootstrap the probabilities come
+        # from (blocks weigh by their error), the runner-up winning under SHARE_SEPARATE of the
+        # head-to-head draws; a doubt that is about the name, not the pair, is not an ambiguity
         z = separation(block_sse, answer, second)
-        ambiguous = z is None or abs(z) < Z_SEPARATE
+        share = head_to_head(block_sse, answer, second, cal)
+        apart = share is not None and min(share, 1.0 - share) < SHARE_SEPARATE
+        ambiguous = z is None or (abs(z) < Z_SEPARATE and not apart)
     both = bool(pair and {answer, second} == set(pair) and not confident)
     if both:
         p1 = p1 + p2
