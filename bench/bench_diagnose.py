@@ -143,6 +143,7 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
             "ratio_to_noise": rec["ratio_to_noise"], "expected_z": rec.get("expected_z"),
             "blocks": rec.get("blocks"), "duration_s": rec.get("duration_s"), "answer": d2.verdict.answer,
             "probability": d2.verdict.probability, "confident": d2.verdict.confident,
+            "ambiguous_after": d2.verdict.ambiguous,
             "correct": correct(d2.verdict.answer, kind, case.names, shows),
         }  # fmt: skip
         row["next"]["resolved"] = bool(row["next"]["confident"] and row["next"]["correct"])

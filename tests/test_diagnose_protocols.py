@@ -211,6 +211,24 @@ def test_a_pair_the_bootstrap_tells_apart_is_not_called_ambiguous():
     assert v.ambiguous
 
 
+def test_a_pair_kept_together_is_the_answer_not_an_ambiguity():
+    # select kept friction and pressure_lag together (the pair predicts held-out data better
+    # than either alone): under p = 0.8 the answer is both, tentative; it is ambiguous only when
+    # a third hypothesis is within posterior odds of 3 of the pair
+    sse = {"none": np.full(40, 3.0), "friction": np.ones(40), "pressure_lag": np.full(40, 1.05)}
+    raw = {"none": 0.0, "friction": 0.6, "pressure_lag": 0.4}
+    v = verdict(raw, excess_cut=0.6, dd_gain=0.02, n_blocks=40, pair=("friction", "pressure_lag"),
+                block_sse=sse, dd_z=0.0, dd_z_none=0.0, excess_left=0.1)  # fmt: skip
+    assert v.both and set(v.contenders) == {"friction", "pressure_lag"}
+    assert not v.confident and not v.ambiguous and v.tentative  # the doubt is the names', not the pair's
+    assert "both needed" in v.words()
+    raw3 = {"none": 0.0, "friction": 0.35, "pressure_lag": 0.3, "viscoelasticity": 0.35}
+    sse3 = sse | {"viscoelasticity": np.ones(40)}
+    v = verdict(raw3, excess_cut=0.6, dd_gain=0.02, n_blocks=40, pair=("friction", "viscoelasticity"),
+                block_sse=sse3, dd_z=0.0, dd_z_none=0.0, excess_left=0.1)  # fmt: skip
+    assert v.both and v.ambiguous  # pressure_lag, a third, is not told apart from the pair
+
+
 def test_none_is_less_sure_when_an_effect_comes_close_on_every_block():
     # the best effect's separation from none is the paired log-ratio z of the effect against
     # none after the relevance margin: an effect 10 % better in every block (RMS 5 %, over the

@@ -349,7 +349,8 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     ``excess_cut``, ``dd_gain``: of the best library term; ``excess``, ``dd_gain_none``: of the
     model alone (share of its held-out mean square above the noise; the data-driven gain on it).
     ``pair``: two effects that ``select`` kept together (the pair paid over the first alone): when
-    they are the two contenders, the answer is both, not an ambiguity. The paired evidence
+    they are the two contenders, the answer is both, not an ambiguity (ambiguous only when a
+    third hypothesis is within posterior odds ``ODDS_SEPARATE`` of the pair). The paired evidence
     (optional; without it every split that leaves the answer under ``CONFIDENT`` is ambiguous
     and outside always competes): ``block_sse`` hypothesis -> held-out squared error per block;
     ``dd_z``, ``dd_z_none``: paired z of the data-driven gain on the best term and on none;
@@ -398,8 +399,13 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
         ambiguous = z is None or (abs(z) < Z_SEPARATE and not apart)
     both = bool(pair and {answer, second} == set(pair) and not confident)
     if both:
+        # the pair predicts held-out data better than either alone (``select`` kept it): the two
+        # are not rivals, and the answer is both; it is ambiguous only when the best hypothesis
+        # outside the pair is not told apart from it (posterior odds under ODDS_SEPARATE)
         p1 = p1 + p2
-        confident, ambiguous = p1 >= CONFIDENT, p1 < CONFIDENT
+        p3 = ranked[2][1] if len(ranked) > 2 else 0.0
+        confident = p1 >= CONFIDENT
+        ambiguous = not confident and p3 * ODDS_SEPARATE > p1
     return Verdict(
         probabilities=probs, raw=raw, answer=answer, probability=p1, confident=confident, both=both,
         ambiguous=ambiguous, contenders=[answer, second] if (ambiguous or both) else [answer],
