@@ -201,6 +201,11 @@ def summarise(rows: list[dict]) -> dict:
             "outside_wrong_name_p08": _frac(r["answer"] not in ("none", OUTSIDE) and r["probability"] >= 0.8 for r in outside),
             "outside_dd_improves": _frac(r["dd_heldout_after_N"] < 0.98 * r["dd_heldout_before_N"] for r in outside),
             "next_tried": len(amb), "next_resolved": _frac(r["next"]["resolved"] for r in amb),
+            # beside it (not the goal's figure): the pair told apart and the answer right, at any
+            # probability (rows from before the field was recorded give None)
+            "next_separated_right": _frac(
+                r["next"]["correct"] and not r["next"]["ambiguous_after"] for r in amb
+            ) if all("ambiguous_after" in r["next"] for r in amb) else None,
         }  # fmt: skip
     seconds = [r["seconds"] for r in rows] or [float("nan")]
     big = [r for r in rows if r["samples"] >= 25000]
