@@ -87,6 +87,15 @@ def plan(per_family: int, seed: int) -> list[tuple[int, str, str]]:
     return cases
 
 
+def calibration_plan() -> list[tuple[int, str, str]]:
+    """The calibration cases: every seed of ``CALIBRATION_SEEDS``, in the benchmark's own mix of
+    kinds (``MIX``). A plan cut short after its first seeds would hold the interleaving's early
+    rows (every kind in turn) and so far more clean and two-effect cases than the benchmark: the
+    maps would learn another base rate of effects that are there but hard to see."""
+    n_cal = CALIBRATION_SEEDS[1] - CALIBRATION_SEEDS[0] + 1
+    return plan(n_cal // len(V.FAMILIES), CALIBRATION_SEEDS[0])
+
+
 def correct(answer: str, kind: str, truth: list[str], shows: bool = True) -> bool:
     """Right answer: ``none`` for a clean recording or an effect that does not show (the model's
     own parameters reproduce it: ``virtual_bench.identifiable``); outside the library:
@@ -443,10 +452,7 @@ def main(argv=None) -> int:
             print(f"figure: {fig}")
         return 0
     if args.calibrate:
-        # the benchmark's own mix of kinds: a plan cut short after its first seeds would hold the
-        # interleaving's early rows (every kind in turn), far more clean and two-effect cases
-        n_cal = CALIBRATION_SEEDS[1] - CALIBRATION_SEEDS[0] + 1
-        cases = plan(n_cal // len(V.FAMILIES), CALIBRATION_SEEDS[0])
+        cases = calibration_plan()
         rows = run(cases, args.jobs, try_next=False)
         cal = fit_calibration(rows)
         summary = summarise(rescore(rows, cal))
