@@ -45,10 +45,11 @@ from efam_mujoco.diagnose import virtual_bench as V  # noqa: E402
 from efam_mujoco.diagnose.confidence import (  # noqa: E402
     CALIBRATION,
     CALIBRATION_SEEDS,
-    NONE_Z_CLIP,
     OUTSIDE,
     Calibration,
     best_effect_z,
+    none_features,
+    physics_features,
     verdict,
 )
 from efam_mujoco.diagnose.design import experiment, stroke_speed  # noqa: E402
@@ -270,14 +271,10 @@ def fit_calibration(rows: list[dict]) -> Calibration:
             right = r["kind"] in ("single", "two") and r.get("shows", True) and top in r["truth"]
             weight = sum(effects.values())
             if weight > 0:
-                effect_rows.append(
-                    (np.clip(r["excess_cut"], -1, 1), np.clip(r["dd_gain"], 0, 1), float(right), weight)
-                )
+                effect_rows.append((*physics_features(r["excess_cut"], r["dd_gain"]), float(right), weight))
         if raw.get("none", 0) > 0:
-            effect_z = np.clip(
-                best_effect_z((r.get("evidence") or {}).get("block_sse")), -NONE_Z_CLIP, NONE_Z_CLIP
-            )
-            none_rows.append((np.clip(r["excess"], 0, 1), np.clip(r["dd_gain_none"], 0, 1), effect_z / 5.0,
+            effect_z = best_effect_z((r.get("evidence") or {}).get("block_sse"))
+            none_rows.append((*none_features(r["excess"], r["dd_gain_none"], effect_z),
                               float(r["kind"] == "clean" or not r.get("shows", True)), raw["none"]))  # fmt: skip
     print(f"calibration rows: {len(effect_rows)} won by an effect, {len(none_rows)} by none")
     w = logistic_fit(np.array(effect_rows), [0.0, 3.0, -10.0])

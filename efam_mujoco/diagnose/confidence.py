@@ -235,6 +235,22 @@ def separation(block_sse: dict, a: str, b: str) -> float | None:
     return paired_log_z(np.asarray(block_sse[a]) * _penalty(a), block_sse[b], _penalty(b))
 
 
+def none_features(excess: float, dd_gain: float, effect_z: float) -> tuple[float, float, float]:
+    """The none map's inputs as it weighs them (the calibration fits on the same): the excess and
+    the data-driven gain clipped to [0, 1], the best effect's separation clipped to
+    +-``NONE_Z_CLIP`` and over 5."""
+    return (
+        float(np.clip(excess, 0, 1)), float(np.clip(dd_gain, 0, 1)),
+        float(np.clip(effect_z, -NONE_Z_CLIP, NONE_Z_CLIP)) / 5.0,
+    )  # fmt: skip
+
+
+def physics_features(excess_cut: float, dd_gain: float) -> tuple[float, float]:
+    """The named-physics map's inputs as it weighs them (the calibration fits on the same): the
+    excess cut clipped to [-1, 1], the data-driven gain to [0, 1]."""
+    return float(np.clip(excess_cut, -1, 1)), float(np.clip(dd_gain, 0, 1))
+
+
 def none_probability(
     excess: float, dd_gain: float, cal: Calibration = CALIBRATION, effect_z: float = 0.0
 ) -> float:
@@ -245,10 +261,8 @@ def none_probability(
     when the effect predicts better; see :func:`best_effect_z`). An effect that the re-fit has
     largely absorbed still leaves the model alone short by a consistent margin in every block,
     which the excess alone (a share of a noisy mean square) does not say."""
-    z = (
-        cal.an + cal.bn * float(np.clip(excess, 0, 1)) + cal.cn * float(np.clip(dd_gain, 0, 1))
-        + cal.dn * float(np.clip(effect_z, -NONE_Z_CLIP, NONE_Z_CLIP)) / 5.0
-    )  # fmt: skip
+    x, g, z_best = none_features(excess, dd_gain, effect_z)
+    z = cal.an + cal.bn * x + cal.cn * g + cal.dn * z_best
     return 1.0 / (1.0 + math.exp(-z))
 
 
@@ -265,7 +279,8 @@ def best_effect_z(block_sse: dict | None) -> float:
 
 def named_physics_probability(excess_cut: float, dd_gain: float, cal: Calibration = CALIBRATION) -> float:
     """Probability that the best library term is the physics (not a stand-in for something outside)."""
-    z = cal.a + cal.b * float(np.clip(excess_cut, -1, 1)) + cal.c * float(np.clip(dd_gain, 0, 1))
+    cut, g = physics_features(excess_cut, dd_gain)
+    z = cal.a + cal.b * cut + cal.c * g
     return 1.0 / (1.0 + math.exp(-z))
 
 
