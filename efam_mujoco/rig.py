@@ -231,6 +231,11 @@ def replay_rig(recording, muscle: Muscle, effects=()) -> tuple[mujoco.MjModel, m
     model, data = build_rig(muscle, options)
     if model.na:
         data.act[:] = P[0]
+    for i in range(model.nu):
+        if model.actuator_history[i, 0]:  # a delayed pressure: the line held at the first sample's
+            n = int(model.actuator_history[i, 0])
+            times = -model.opt.timestep * np.arange(n, 0, -1, dtype=float)
+            mujoco.mj_initCtrlHistory(model, data, i, times.reshape(n, 1), np.full((n, 1), P[0]))
     return model, data
 
 

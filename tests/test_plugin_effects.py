@@ -69,6 +69,55 @@ def test_replay_in_mujoco_equals_the_per_sample_reference(bench, name):
     assert_same_force(simulated, reference)
 
 
+def test_a_transport_delay_rides_on_mujocos_ctrl_delay(bench):
+    # pressure_lag with a line delay: MuJoCo's own ctrl delay (interp linear, history filled with
+    # the first sample) and filterexact lag in the rig; the plugin equals the per-sample reference
+    # and the vectorised one, alone and with another effect reading the transducer's pressure
+    recording, muscle = bench
+    lag = {"tau_s": 0.06, "delay_s": 0.045}
+    for effects in ([("pressure_lag", lag)], [("pressure_lag", lag), ("friction", VALUES["friction"])]):
+        reference = stepwise(muscle, effects, recording)
+        vectorised = E.EffectModel(muscle, effects).push_recording(recording)
+        without_delay = stepwise(muscle, [("pressure_lag", {"tau_s": 0.06})] + effects[1:], recording)
+        assert np.max(np.abs(reference - without_delay)) > 1.0  # the delay does something here (N)
+        assert_same_force(rig.replay(recording, muscle, effects), reference)
+        assert_same_force(vectorised, reference)
+
+
+def test_a_delayed_lag_of_a_pressure_step_starts_after_the_delay():
+    # at constant length (no gas-volume term) the internal pressure after a step at t0 is the
+    # supply's delayed by d, then a first-order fill: flat until t0 + d, then
+    # 1 - exp(-(t - t0 - d) / tau) of the step (the sample grid holds t0 + d exactly)
+    t = np.arange(0.0, 2.0, 0.002)
+    L = np.full(len(t), FAM1.rest_length_m)
+    P = np.where(t >= 0.5 - 1e-9, 300e3, 100e3)
+    tau, d = 0.1, 0.08
+    model = E.EffectModel(FAM1, [("pressure_lag", {"tau_s": tau, "delay_s": d})])
+    force = model.push(t, L, P)
+    k0 = int(np.flatnonzero(t >= 0.5 + d - 1e-9)[0])  # the first sample the line has the step
+    after = np.arange(k0, len(t))
+    P_i = 300e3 - 200e3 * np.exp(-(t[after] - t[k0] + 0.002) / tau)  # the lag includes its sample
+    np.testing.assert_allclose(force[after], FAM1.push(P_i, L[after]), rtol=1e-9)
+    before = t < 0.5 + d - 1e-9
+    np.testing.assert_allclose(force[before], FAM1.push(100e3, L[before]), rtol=1e-12)
+    assert_same_force(rig.replay(Recording(t, L, P, force), FAM1, model.effects), force)
+
+
+def test_a_delay_the_actuator_does_not_have_is_refused_and_old_files_load():
+    lag = {"tau_s": 0.2, "delay_s": 0.05}
+    config = plugin_config(FAM1, [("pressure_lag", lag)])
+    with pytest.raises(
+        ValueError, match=r"'pressure_lag.delay_s' = 0.05 needs the actuator's own ctrl delay"
+    ):
+        mujoco.MjModel.from_xml_string(one_muscle(config, LAG))  # filterexact without the delay
+    mujoco.MjModel.from_xml_string(one_muscle(config, actuator_dynamics([("pressure_lag", lag)])))
+    # a file written before the key existed: no delay, the same model as before
+    old = {k: v for k, v in config.items() if k != "pressure_lag.delay_s"}
+    old["pressure_lag.tau_s"] = "0.2"
+    mujoco.MjModel.from_xml_string(one_muscle(old, LAG))
+    assert E.check_values("pressure_lag", {"tau_s": 0.2}) == {"tau_s": 0.2, "delay_s": 0.0}
+
+
 def test_all_effects_at_once_on_a_tension_only_muscle(bench):
     # a tension-only muscle carries no effect force while the model calls it slack; with
     # pressure_lag on, "slack" is judged at the measured pressure, as in effects.py
@@ -289,8 +338,9 @@ def test_the_plugin_takes_exactly_the_librarys_parameters_and_bounds(name):
             (np.nextafter(p.hi, np.inf), False),
         ):
             config = with_effects(name, **{key.replace(".", "__"): repr(float(value))})
-            tau = value if name == "pressure_lag" else None
-            dynamics = f' dyntype="filterexact" dynprm="{float(value)!r}" actdim="1"' if tau else ""
+            # pressure_lag rides on the actuator's own lag and ctrl delay: written from the values
+            values = dict(VALUES[name], **{p.key: float(value)})
+            dynamics = actuator_dynamics([(name, values)]) if name == "pressure_lag" else ""
             xml = one_muscle(config, dynamics)
             if ok:
                 mujoco.MjModel.from_xml_string(xml)
@@ -298,7 +348,6 @@ def test_the_plugin_takes_exactly_the_librarys_parameters_and_bounds(name):
                 with pytest.raises(ValueError, match=rf"config key '{key}' = .* is outside \["):
                     mujoco.MjModel.from_xml_string(xml)
             # and the Python side agrees
-            values = dict(VALUES[name], **{p.key: float(value)})
             if ok:
                 plugin_config(FAM1, [(name, values)])
             else:

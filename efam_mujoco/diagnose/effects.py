@@ -69,6 +69,29 @@ def lag(t: np.ndarray, u: np.ndarray, tau: float, starts=(0,)) -> np.ndarray:
     return out
 
 
+DELAY_FLOOR_S = 1e-3  # the smallest transport delay searched: it stands for none
+
+
+def delayed(t: np.ndarray, u: np.ndarray, delay: float, starts=(0,)) -> np.ndarray:
+    """``u`` delayed by ``delay`` seconds within each recording, linearly interpolated between
+    samples, the first sample held before the start: MuJoCo's ctrl delay with ``interp="linear"``
+    and its history filled with the first value. MuJoCo reads the history before it stores the
+    current sample, so a delay shorter than the last interval gives the previous sample (at least
+    one step of delay). ``delay <= 0``: ``u`` itself."""
+    u = np.asarray(u, dtype=float)
+    if delay <= 0:
+        return u.copy()
+    out = np.empty_like(u)
+    for b, e in segments(np.asarray(starts), len(u)):
+        tt, uu = t[b:e], u[b:e]
+        seg = np.interp(tt - delay, tt, uu)
+        previous_t = np.r_[-np.inf, tt[:-1]]
+        short = tt - delay > previous_t
+        seg[short] = np.r_[uu[0], uu[:-1]][short]
+        out[b:e] = seg
+    return out
+
+
 def play(u: np.ndarray, width: float, starts=(0,)) -> np.ndarray:
     """Play operator output z in [-1, 1] (0 at each start): z_k = clip(z_{k-1} + du_k/width, -1, 1)."""
     out = np.empty(len(u))
@@ -249,6 +272,7 @@ class Param:
     shape: bool = False
     grid: tuple[float, ...] = ()
     meaning: str = ""
+    default: float | None = None  # an optional key's value when it is not given (older files)
 
 
 @dataclass
@@ -293,7 +317,10 @@ class Effect:
 
     def force(self, ctx: Context, values: dict[str, float]) -> np.ndarray:
         """The effect's added push force (N) at every sample of ``ctx`` for parameter ``values``."""
-        fixed, cols = self.design(ctx, {p.key: values[p.key] for p in self.shapes})
+        shape = {
+            p.key: values[p.key] if p.key in values or p.default is None else p.default for p in self.shapes
+        }
+        fixed, cols = self.design(ctx, shape)
         if self.per_recording:
             key = self.linear[0].key
             a = np.array(values.get(f"{key}_by_recording") or [values[key]] * cols.shape[1])
@@ -560,48 +587,95 @@ class Drift(Effect):
 
 
 class PressureLag(Effect):
-    """Pressure lag: the internal pressure follows the measured one through a first-order fill with gas-volume changes."""
+    """Pressure lag: the internal pressure follows the measured one after a transport delay, through a first-order fill with gas-volume changes."""
 
     def __init__(self):
         super().__init__(
             name="pressure_lag",
-            summary="the internal pressure lags the measured one (valve, tube, gas volume)",
+            summary="the internal pressure lags the measured one (a line's transport delay, then valve, tube, gas volume)",
             equation=(
-                "dF = F(P_i, L) - F(P, L),  P_i = lag(P - tau (P + P_atm) dV/dt / V, tau), "
+                "dF = F(P_i, L) - F(P, L),  P_i = lag(P(t - d) - tau (P + P_atm) dV/dt / V, tau), "
                 "V = pi R_o(L)^2 L - V_B"
             ),
             params=(
                 Param(
                     "tau_s", 0.002, 3.0, True, (0.01, 0.03, 0.08, 0.15, 0.3, 0.6, 1.2), "fill time constant"
                 ),
+                Param(
+                    "delay_s",
+                    0.0,
+                    0.5,
+                    True,
+                    (DELAY_FLOOR_S, 0.03, 0.08),
+                    "transport delay of the line",
+                    default=0.0,
+                ),
             ),
             state=("P_i", "V_prev"),
-            plugin="efam.muscle key pressure_lag.tau_s on an actuator with dyntype filterexact, dynprm = tau_s, actearly; 2 states for the gas-volume term",
+            plugin=(
+                "efam.muscle keys pressure_lag.tau_s and pressure_lag.delay_s on an actuator with dyntype "
+                "filterexact, dynprm = tau_s, actearly, and MuJoCo's own ctrl delay = delay_s (interp linear); "
+                "2 states for the gas-volume term"
+            ),
             signature="force lagging pressure changes, and an error while the volume changes",
         )
 
+    def shape_range(self, ctx, p):
+        # the search runs in log space: its smallest delay stands for none (a millisecond)
+        if p.key == "delay_s":
+            return DELAY_FLOOR_S, p.grid, p.hi
+        return p.lo, p.grid, p.hi
+
     def _design(self, ctx, shape):
-        tau = shape["tau_s"]
+        tau, d = shape["tau_s"], shape.get("delay_s", 0.0)
         m = ctx.muscle
         V = ctx.cached("V", lambda: gas_volume(m, ctx.L))
         dVdt = ctx.cached("dV", lambda: backward_rate(ctx.t, V, ctx.starts))
-        drive = ctx.P - tau * (ctx.P + P_ATM) * dVdt / V
+        P_line = ctx.cached(("delayed_P", d), lambda: delayed(ctx.t, ctx.P, d, ctx.starts))
+        drive = P_line - tau * (ctx.P + P_ATM) * dVdt / V
         P_int = lag(ctx.t, drive, tau, ctx.starts)
         return _gate(ctx, m.push(P_int, ctx.L) - ctx.base), np.zeros((ctx.n, 0))
 
+    def initial_state(self) -> list:
+        """The lag and volume states, and the pressure history the delay reads (times, values)."""
+        return [0.0, 0.0, [], []]
+
     def step(self, v, state, s: Sample) -> float:
-        """One sample of the lagged internal pressure and the force change it makes; see :class:`Effect.step`."""
+        """One sample of the delayed, lagged internal pressure and the force change it makes; see :class:`Effect.step`."""
         m = s.muscle
-        tau = v["tau_s"]
+        tau, d = v["tau_s"], v.get("delay_s", 0.0)
         V = float(gas_volume(m, s.L))
+        times, values = state[2], state[3]
         if s.first:
-            state[:] = [s.P, V]
+            times.clear()
+            values.clear()
+        # the history as MuJoCo reads it: the samples before this one (the first: its own value)
+        P_line = _interpolate(times, values, s.t - d) if d > 0 and times else s.P
+        times.append(s.t)
+        values.append(s.P)
+        if s.first:
+            state[0], state[1] = P_line, V
             return 0.0
-        drive = s.P - tau * (s.P + P_ATM) * (V - state[1]) / max(s.dt, 1e-12) / V
+        drive = P_line - tau * (s.P + P_ATM) * (V - state[1]) / max(s.dt, 1e-12) / V
         state[0] += (1.0 - math.exp(-s.dt / tau)) * (drive - state[0])
         state[1] = V
         force = m.push(state[0], s.L) - m.push(s.P, s.L)
         return force if s.engaged else 0.0
+
+
+def _interpolate(times: list, values: list, at: float) -> float:
+    """Linear interpolation in a growing history (MuJoCo's ``interp="linear"`` ctrl delay); before
+    its first sample the first value, after its last the last."""
+    import bisect
+
+    k = bisect.bisect_right(times, at)
+    if k == 0:
+        return values[0]
+    if k >= len(times):
+        return values[-1]
+    t0, t1 = times[k - 1], times[k]
+    w = (at - t0) / (t1 - t0) if t1 > t0 else 1.0
+    return values[k - 1] + w * (values[k] - values[k - 1])
 
 
 class ForceOffset(Effect):
@@ -651,6 +725,9 @@ def check_values(name: str, values: dict) -> dict[str, float]:
     effect = get(name)
     out = {}
     for p in effect.params:
+        if p.key not in values and p.default is not None:
+            out[p.key] = float(p.default)
+            continue
         if p.key not in values:
             raise ValueError(f"effect '{name}': missing parameter '{p.key}'")
         v = values[p.key]

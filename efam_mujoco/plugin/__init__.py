@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import hashlib
+import math
 import os
 import sys
 import threading
@@ -295,19 +296,31 @@ def _effect_pairs(effects) -> list[tuple[str, dict]]:
     return out
 
 
+CTRL_HISTORY_STEP_S = 2.5e-4  # the finest step a delayed pressure's history is sized for (4 kHz)
+
+
 def actuator_dynamics(effects=None, lag_s: float | None = None) -> str:
     """Attributes of the ``<plugin>`` actuator element for its pressure dynamics: a valve/tube lag
     ``lag_s`` (MuJoCo ``filterexact``), or the ``pressure_lag`` effect's (the plugin adds the gas
     volume term to MuJoCo's lag, so the two time constants must be one; ``actearly`` makes the
-    lag include the current sample, as the effect's reference does). Empty for no dynamics."""
-    tau = dict(_effect_pairs(effects)).get("pressure_lag", {}).get("tau_s")
+    lag include the current sample, as the effect's reference does; a ``delay_s`` rides on MuJoCo's
+    ctrl delay, linearly interpolated). Empty for no dynamics."""
+    lag_effect = dict(_effect_pairs(effects)).get("pressure_lag", {})
+    tau = lag_effect.get("tau_s")
     if tau is not None:
         if lag_s is not None and float(lag_s) != float(tau):
             raise ValueError(
                 f"the actuator's pressure lag {lag_s!r} s and effect pressure_lag tau_s = {tau!r} s are "
                 "one first-order lag: give one of them"
             )
-        return f' dyntype="filterexact" dynprm="{_number(tau)}" actdim="1" actearly="true"'
+        out = f' dyntype="filterexact" dynprm="{_number(tau)}" actdim="1" actearly="true"'
+        delay = float(lag_effect.get("delay_s", 0.0))
+        if delay > 0:
+            # MuJoCo's own ctrl delay carries the line's transport delay; its history must span
+            # the delay at the finest step it will be stepped with (CTRL_HISTORY_STEP_S)
+            nsample = int(math.ceil(delay / CTRL_HISTORY_STEP_S)) + 2
+            out += f' delay="{_number(delay)}" nsample="{nsample}" interp="linear"'
+        return out
     if lag_s:
         return f' dyntype="filterexact" dynprm="{_number(lag_s)}" actdim="1"'
     return ""

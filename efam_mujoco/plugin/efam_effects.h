@@ -53,6 +53,7 @@ typedef enum {
 typedef struct {
   const char* key;
   double lo, hi;  // inclusive, as effects.Param / check_values
+  int optional;   // may be absent (then 0), as effects.Param.default: a key added after files were written
 } EffectParam;
 
 typedef struct {
@@ -81,7 +82,7 @@ static const EffectSpec kEffects[NEFFECT] = {
      4,
      {{"d0_N_per_s", -1.0, 1.0}, {"d1_N_per_s", -10.0, 10.0}, {"d2_N_per_s_MPa", -10.0, 10.0}, {"tau_s", 30.0, 1e6}},
      0},
-    {"pressure_lag", 1, {{"tau_s", 0.002, 3.0}}, 2},
+    {"pressure_lag", 2, {{"tau_s", 0.002, 3.0}, {"delay_s", 0.0, 0.5, 1}}, 2},
 };
 #define EFFECT_KNOWN "friction, viscoelasticity, end_effects, braid_compliance, softening, drift, pressure_lag"
 
@@ -117,6 +118,7 @@ typedef struct {
 
 // Defined in efam_muscle.c (after the Muscle struct, which needs this file first).
 static double actuator_pressure(const mjModel* m, const mjData* d, int i);
+static double transducer_pressure(const mjModel* m, const mjData* d, int i);
 static const char* instance_label(const mjModel* m, int instance, char* buf, size_t size);
 static const char* config_value(const mjModel* m, int instance, const char* key);
 static double read_number(const mjModel* m, int instance, const char* key, int required, double fallback);
@@ -260,11 +262,21 @@ static int effect_on(const EffectsConfig* fx, EffectKind kind) {
   return 0;
 }
 
-// pressure_lag rides on the actuator's own first-order lag: filterexact with the same tau.
-static void check_pressure_lag(const mjModel* m, int instance, double tau) {
+// pressure_lag rides on the actuator's own first-order lag (filterexact with the same tau) and on
+// MuJoCo's own ctrl delay for the line's transport delay (the same delay, linearly interpolated).
+static void check_pressure_lag(const mjModel* m, int instance, double tau, double delay) {
   for (int i = 0; i < m->nactuator; i++) {
     if (m->actuator_plugin[i] != instance) {
       continue;
+    }
+    double given = m->actuator_delay[i];
+    int linear = m->actuator_history[2 * i + 1] == 1;
+    if (!(fabs(given - delay) <= 1e-12 * (delay > 1e-3 ? delay : 1e-3)) || (delay > 0 && !linear)) {
+      EFFECT_ERROR(m, instance,
+                   "config key 'pressure_lag.delay_s' = %.10g needs the actuator's own ctrl delay with the "
+                   "same value: delay=\"%.17g\" nsample=\"N\" interp=\"linear\" (N samples spanning the delay); "
+                   "the actuator has delay %.10g%s",
+                   delay, delay, given, delay > 0 && !linear ? " without interp=\"linear\"" : "");
     }
     double dynprm = m->actuator_dynprm[i * mjNDYN];
     if (m->actuator_dyntype[i] != mjDYN_FILTEREXACT || !(fabs(dynprm - tau) <= 1e-12 * tau)) {
@@ -302,7 +314,7 @@ static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx,
         continue;
       }
       const EffectParam* p = &kEffects[e].params[j];
-      double value = read_number(m, instance, key, 1, 0.0);
+      double value = read_number(m, instance, key, !p->optional, 0.0);
       if (!(p->lo <= value && value <= p->hi)) {
         EFFECT_ERROR(m, instance, "config key '%s' = %.10g is outside [%g, %g]", key, value, p->lo, p->hi);
       }
@@ -316,7 +328,7 @@ static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx,
   }
   fx->pressure_lag = effect_on(fx, FX_PRESSURE_LAG);
   if (fx->pressure_lag) {
-    check_pressure_lag(m, instance, fx->value[FX_PRESSURE_LAG][0]);
+    check_pressure_lag(m, instance, fx->value[FX_PRESSURE_LAG][0], fx->value[FX_PRESSURE_LAG][1]);
   }
   int expected = effects_nstate(m, instance);
   if (m->plugin_statenum[instance] != expected) {  // nstate and init read the same keys: cannot happen
@@ -557,7 +569,7 @@ static void effects_add_forces(const mjModel* m, mjData* d, int instance, const 
     EffectSample s;
     s.L = d->actuator_length[out];
     s.P_seen = actuator_pressure(m, d, i);
-    s.P = fx->pressure_lag ? measured_pressure(m, d, i) : s.P_seen;
+    s.P = fx->pressure_lag ? transducer_pressure(m, d, i) : s.P_seen;
     s.base = d->actuator_force[out];
     s.first = old[0] == 0.0;
     double t_first = s.first ? d->time : old[1];

@@ -183,11 +183,11 @@ static double wall(double volume, double L, double r_out) {
   return r_out - sqrt(inner_sq);
 }
 
-// The measured pressure: the clamped (and delayed) control, as MuJoCo feeds its filter.
-static double measured_pressure(const mjModel* m, const mjData* d, int i) {
+// The control as given (clamped), `delayed` through the actuator's ctrl delay when it has one.
+static double control_pressure(const mjModel* m, const mjData* d, int i, int delayed) {
   int u = m->actuator_ctrladr[i];
   double ctrl = d->ctrl[u];
-  if (m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
+  if (delayed && m->actuator_delay[i] > 0 && m->actuator_historyadr[i] >= 0) {
     double interpolated;
     const mjtNum* read = mj_readCtrl(m, d, i, d->time, &interpolated, m->actuator_history[2 * i + 1]);
     ctrl = read ? *read : interpolated;
@@ -196,6 +196,18 @@ static double measured_pressure(const mjModel* m, const mjData* d, int i) {
     ctrl = clip(ctrl, m->actuator_ctrlrange[2 * u], m->actuator_ctrlrange[2 * u + 1]);
   }
   return ctrl;
+}
+
+// The measured pressure: the clamped (and delayed) control, as MuJoCo feeds its filter.
+static double measured_pressure(const mjModel* m, const mjData* d, int i) {
+  return control_pressure(m, d, i, 1);
+}
+
+// The transducer's pressure under the effect pressure_lag: the clamped control before the line's
+// transport delay (pressure_lag.delay_s rides on the actuator's ctrl delay, which is the line's,
+// downstream of the transducer the recording read).
+static double transducer_pressure(const mjModel* m, const mjData* d, int i) {
+  return control_pressure(m, d, i, 0);
 }
 
 // effect terms (config key `effects`): their own file; hooks below are marked efam_effects.h
