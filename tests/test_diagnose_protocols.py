@@ -322,6 +322,18 @@ def test_effects_in_other_forms_and_protocols_are_named_with_confidence(cases, k
     assert js["verdict"]["answer"] == d.answer and "held out" in js["structure"]
 
 
+def test_a_transport_delay_is_fitted_as_one(cases):
+    # the truth: the pressure shifted by its delay, then a first-order fill (written in the
+    # virtual bench, not with the library's term). Slow pressure changes see the mean lag of that
+    # response, delay + tau; its split between the two is what a fast step would show
+    case, _, d = cases["lag_isometric"]
+    truth = case.params["pressure_lag"]
+    fitted = {e["name"]: e["parameters"] for e in d.effects}["pressure_lag"]
+    assert fitted["delay_s"] > 0.0
+    mean_lag = fitted["delay_s"] + fitted["tau_s"]
+    assert mean_lag == pytest.approx(truth["delay_s"] + truth["tau_s"], rel=0.25)
+
+
 def test_next_experiment_separates_friction_from_viscoelasticity(cases):
     # two hypotheses that differ in holds and rate: the design proposes a test where they differ
     _, _, d = cases["visco_sine"]

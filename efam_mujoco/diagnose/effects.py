@@ -69,7 +69,7 @@ def lag(t: np.ndarray, u: np.ndarray, tau: float, starts=(0,)) -> np.ndarray:
     return out
 
 
-DELAY_FLOOR_S = 1e-3  # the smallest transport delay searched: it stands for none
+DELAY_FLOOR_S = 1e-3  # the smallest transport delay searched on data sampled faster than 1 kHz
 
 
 def delayed(t: np.ndarray, u: np.ndarray, delay: float, starts=(0,)) -> np.ndarray:
@@ -305,6 +305,12 @@ class Effect:
     def shape_range(self, ctx: Context, p: Param) -> tuple[float, tuple[float, ...], float]:
         """(lowest value, grid, highest value) of a shape parameter for these recordings."""
         return p.lo, p.grid, p.hi
+
+    def settle(self, ctx: Context, shape: dict[str, float]) -> dict[str, float]:
+        """The shape values as the model uses and writes them, from the values the (log-space)
+        search over ``ctx`` tried; by default the same. Applied where the search fits (``select``),
+        not in :meth:`design`: fitted values simulated on other data keep their meaning."""
+        return dict(shape)
 
     def design(self, ctx: Context, shape: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         """(fixed force, columns): dF = fixed + columns @ linear values, both zero where the
@@ -606,7 +612,7 @@ class PressureLag(Effect):
                     0.0,
                     0.5,
                     True,
-                    (DELAY_FLOOR_S, 0.03, 0.08),
+                    (DELAY_FLOOR_S, 0.03, 0.08),  # the first: no delay (the floor, see delay_floor)
                     "transport delay of the line",
                     default=0.0,
                 ),
@@ -620,11 +626,27 @@ class PressureLag(Effect):
             signature="force lagging pressure changes, and an error while the volume changes",
         )
 
+    @staticmethod
+    def delay_floor(ctx) -> float:
+        """The smallest transport delay searched: one sample interval (at least a millisecond).
+        MuJoCo's ctrl delay reads only earlier samples, so any delay up to one interval acts as a
+        whole one; the floor therefore stands for no delay at all (see :meth:`settle`)."""
+        return ctx.cached("delay_floor", lambda: max(DELAY_FLOOR_S, float(np.median(np.diff(ctx.t)))))
+
     def shape_range(self, ctx, p):
-        # the search runs in log space: its smallest delay stands for none (a millisecond)
+        # the search runs in log space, so "no delay" is its floor, written as exactly 0
         if p.key == "delay_s":
-            return DELAY_FLOOR_S, p.grid, p.hi
+            floor = self.delay_floor(ctx)
+            grid = (floor,) + tuple(g for g in p.grid if g > 1.5 * floor)
+            return floor, grid, max(p.hi, 2.0 * floor)
         return p.lo, p.grid, p.hi
+
+    def settle(self, ctx, shape):
+        """A delay at (or, after refinement, within 5 % of) the floor is no delay: 0 exactly."""
+        out = dict(shape)
+        if out.get("delay_s", 0.0) <= 1.05 * self.delay_floor(ctx):
+            out["delay_s"] = 0.0
+        return out
 
     def _design(self, ctx, shape):
         tau, d = shape["tau_s"], shape.get("delay_s", 0.0)

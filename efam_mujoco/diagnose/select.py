@@ -140,7 +140,7 @@ class Engine:
         fixed = np.zeros(self.n)
         cols, lo, hi, owner = [], [], [], []
         for effect, shape in zip(effects, shapes):
-            f, C = effect.design(self.ctx, shape)
+            f, C = effect.design(self.ctx, effect.settle(self.ctx, shape))
             fixed = fixed + f
             if effect.per_recording:  # one amplitude per recording, keyed "<key>#<recording>"
                 params = [(effect.linear[0], f"{effect.linear[0].key}#{r}") for r in range(C.shape[1])]
@@ -290,7 +290,7 @@ class Engine:
         values: dict[str, dict[str, float]] = {}
         identifiable: dict[str, list[str]] = {}
         for effect, shape in zip(effects, shapes):
-            values[effect.name] = {p.key: 0.0 for p in effect.linear} | dict(shape)
+            values[effect.name] = {p.key: 0.0 for p in effect.linear} | effect.settle(self.ctx, shape)
             identifiable[effect.name] = list(shape)
         per_recording: dict[tuple[str, str], dict[int, float]] = {}
         for (name, key, scale), a in zip(owner, theta[k_model:]):
