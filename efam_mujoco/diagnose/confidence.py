@@ -93,13 +93,13 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -1.922  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 4.819
-    c: float = -7.852
+    a: float = -1.761  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 5.115
+    c: float = -9.801
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
     an: float = -1.166  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
     bn: float = -4.876
-    cn: float = -4.404
+    cn: float = -4.403
     dn: float = -3.169  # weight of the best effect's paired separation from none (``best_effect_z``)
 
 
