@@ -313,11 +313,13 @@ class Muscle:
         force = gauge * area / math.cos(theta) ** 2 * (3 * math.sin(theta) ** 2 - 1)
         return force if force.ndim else float(force)
 
-    def free_length(self, pressure_Pa):
+    def free_length(self, pressure_Pa, check_units: bool = True):
         """Length at which the muscle carries no force (Eq. 2 = 0), searched from rest length in
         the direction the pressure moves it. Vectorised over pressures (a loop of root finds).
-        Pressures in Pa (a warning below 1000 Pa)."""
-        check_pressure_Pa(pressure_Pa, "Muscle.free_length")
+        Pressures in Pa (a warning below 1000 Pa; ``check_units=False`` when the caller has
+        checked a set these pressures belong to, e.g. one section's differential pressures)."""
+        if check_units:
+            check_pressure_Pa(pressure_Pa, "Muscle.free_length")
         P = np.asarray(pressure_Pa, dtype=float)
         out = np.array([self._free_length_one(float(p)) for p in P.ravel()]).reshape(P.shape)
         return out if out.ndim else float(out)
