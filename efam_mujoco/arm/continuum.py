@@ -221,7 +221,9 @@ def solve_section_cc(section, pressures_Pa) -> SectionState:
     # set may well be at a few hundred Pa, which Muscle.free_length alone would take for kPa
     check_pressure_Pa(sec.pressures, "continuum.solve_section_cc")
     nu0 = (
-        float(np.mean([m.free_length(float(p), check_units=False) for m, p in zip(sec.muscles, sec.pressures)]))
+        float(
+            np.mean([m.free_length(float(p), check_units=False) for m, p in zip(sec.muscles, sec.pressures)])
+        )
         / sec.length
     )
     return _cc_state(sec, sec.strains(np.zeros(3), [nu0, 0.0, 0.0]))
