@@ -332,6 +332,13 @@ def test_a_transport_delay_is_fitted_as_one(cases):
     assert fitted["delay_s"] > 0.0
     mean_lag = fitted["delay_s"] + fitted["tau_s"]
     assert mean_lag == pytest.approx(truth["delay_s"] + truth["tau_s"], rel=0.25)
+    # the rig the report writes carries it on MuJoCo's own ctrl delay, and compiles
+    import mujoco
+
+    from efam_mujoco.diagnose.report import rig_with_effects
+
+    model = mujoco.MjModel.from_xml_string(rig_with_effects(d))
+    assert model.actuator_delay[0] == pytest.approx(fitted["delay_s"], rel=1e-12)
 
 
 def test_next_experiment_separates_friction_from_viscoelasticity(cases):
