@@ -182,24 +182,6 @@ def test_the_delay_search_starts_at_one_sample_interval_which_stands_for_no_dela
         assert lag.settle(ctx, dict(tau_s=0.1, delay_s=3.0 * lo))["delay_s"] == pytest.approx(3.0 * lo)
 
 
-def test_a_delayed_pressure_step_is_flat_until_the_delay_then_fills(fam1):
-    # independent reference: P_line is the step shifted by d, then the first-order fill from it
-    t = np.arange(0.0, 2.0, 0.005)
-    P = np.where(t >= 0.5, 300e3, 100e3)
-    L = np.full(len(t), fam1.rest_length_m)
-    d, tau = 0.1, 0.2
-    f = E.get("pressure_lag").force(_ctx(fam1, t, L, P), dict(tau_s=tau, delay_s=d))
-    step, dt = 100, 0.005  # P steps at sample 100 (t = 0.5); the line carries it 20 samples later
-    arrives = step + int(round(d / dt))
-    plateau = fam1.push(100e3, L[0]) - fam1.push(300e3, L[0])
-    assert np.max(np.abs(f[step:arrives] - plateau)) < 1e-9
-    # after it arrives, the fill (each sample moves by 1 - exp(-dt/tau) toward the line pressure)
-    after = np.arange(len(t)) > arrives
-    P_i = 300e3 - 200e3 * np.exp(-(t[after] - t[arrives] + dt) / tau)
-    expected = fam1.push(P_i, fam1.rest_length_m) - fam1.push(300e3, fam1.rest_length_m)
-    np.testing.assert_allclose(f[after], expected, rtol=1e-9, atol=1e-6)
-
-
 def test_a_slack_tension_only_muscle_carries_no_effect_force_but_the_sensor_offset():
     from dataclasses import replace
 

@@ -3,6 +3,7 @@ the segmentation of protocols it was not developed with, the probabilities, the 
 correction and the next-experiment design. Truths come from ``diagnose.virtual_bench`` (written
 independently of the library, in other functional forms)."""
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -23,6 +24,7 @@ from efam_mujoco.diagnose.confidence import (
 from efam_mujoco.diagnose.design import candidates, recommend, unabsorbed
 from efam_mujoco.diagnose.effects import Context, EffectModel
 from efam_mujoco.diagnose.model import _deadband_hi
+from efam_mujoco.diagnose.report import rig_with_effects
 from efam_mujoco.diagnose.segment import label
 from efam_mujoco.recordings import Recording
 
@@ -333,10 +335,6 @@ def test_a_transport_delay_is_fitted_as_one(cases):
     mean_lag = fitted["delay_s"] + fitted["tau_s"]
     assert mean_lag == pytest.approx(truth["delay_s"] + truth["tau_s"], rel=0.25)
     # the rig the report writes carries it on MuJoCo's own ctrl delay, and compiles
-    import mujoco
-
-    from efam_mujoco.diagnose.report import rig_with_effects
-
     model = mujoco.MjModel.from_xml_string(rig_with_effects(d))
     assert model.actuator_delay[0] == pytest.approx(fitted["delay_s"], rel=1e-12)
 

@@ -22,6 +22,7 @@ vectorised one (:meth:`Effect.design`) is what the diagnosis fits; a test holds 
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 
@@ -688,8 +689,6 @@ class PressureLag(Effect):
 def _interpolate(times: list, values: list, at: float) -> float:
     """Linear interpolation in a growing history (MuJoCo's ``interp="linear"`` ctrl delay); before
     its first sample the first value, after its last the last."""
-    import bisect
-
     k = bisect.bisect_right(times, at)
     if k == 0:
         return values[0]
