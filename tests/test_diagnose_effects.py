@@ -81,7 +81,7 @@ VALUES = {
     "braid_compliance": dict(b1_per_MPa=0.02, b2_per_MPa2=-0.01),
     "softening": dict(a=0.1, width=0.03),
     "drift": dict(d0_N_per_s=0.002, d1_N_per_s=-0.01, d2_N_per_s_MPa=0.01, tau_s=300.0),
-    "pressure_lag": dict(tau_s=0.2),
+    "pressure_lag": dict(tau_s=0.2, volume_gain=0.6),
     "force_offset": dict(offset_N=1.5),
 }
 
@@ -164,6 +164,28 @@ def test_pressure_lag_at_fixed_length_is_the_lagged_pressure_through_the_model(f
     P_i = 300e3 - 200e3 * np.exp(-(t[after] - t[after][0] + 0.01) / 0.25)
     expected = fam1.push(P_i, fam1.rest_length_m) - fam1.push(300e3, fam1.rest_length_m)
     np.testing.assert_allclose(f[after], expected, rtol=1e-9, atol=1e-9)
+
+
+def test_pressure_lag_volume_gain_weighs_the_quasi_steady_gas_volume_drop(fam1):
+    # a slow stroke at constant supply pressure: the fill dP/dt = (P_s - P)/tau - (P + P_atm) V'/V
+    # settles at P = P_s - tau (P + P_atm) V'/V (isothermal gas), which volume_gain 1 reproduces;
+    # 0 is a lag without the volume term (no force change at constant pressure); 0.5 half of it
+    t = np.linspace(0, 20, 20001)
+    rest = fam1.rest_length_m
+    L = rest * (1 + 0.3 * t / 20)
+    P = np.full(len(t), 300e3)
+    ctx = _ctx(fam1, t, L, P)
+    tau = 0.01
+    R = fam1.outer_radius(L)
+    V = np.pi * R**2 * L - fam1.bladder_volume_m3  # the gas inside the bladder
+    dVdt = np.gradient(V, t)
+    P_i = 300e3 - tau * (300e3 + E.P_ATM) * dVdt / V
+    expected = fam1.push(P_i, L) - fam1.push(P, L)
+    late = t > 2.0  # 200 time constants: the lag has settled
+    assert np.max(np.abs(expected[late])) > 1e-3  # the drop does something here
+    for gain in (0.0, 0.5, 1.0):
+        f = E.get("pressure_lag").force(ctx, dict(tau_s=tau, volume_gain=gain))
+        np.testing.assert_allclose(f[late], gain * expected[late], rtol=2e-3, atol=1e-9)
 
 
 def test_the_delay_search_starts_at_one_sample_interval_which_stands_for_no_delay(fam1):

@@ -111,11 +111,16 @@ def test_a_delay_the_actuator_does_not_have_is_refused_and_old_files_load():
     ):
         mujoco.MjModel.from_xml_string(one_muscle(config, LAG))  # filterexact without the delay
     mujoco.MjModel.from_xml_string(one_muscle(config, actuator_dynamics([("pressure_lag", lag)])))
-    # a file written before the key existed: no delay, the same model as before
-    old = {k: v for k, v in config.items() if k != "pressure_lag.delay_s"}
+    # a file written before the keys existed: no delay and the whole gas-volume term, the same
+    # model as before
+    old = {k: v for k, v in config.items() if k not in ("pressure_lag.delay_s", "pressure_lag.volume_gain")}
     old["pressure_lag.tau_s"] = "0.2"
     mujoco.MjModel.from_xml_string(one_muscle(old, LAG))
-    assert E.check_values("pressure_lag", {"tau_s": 0.2}) == {"tau_s": 0.2, "delay_s": 0.0}
+    assert E.check_values("pressure_lag", {"tau_s": 0.2}) == {
+        "tau_s": 0.2,
+        "delay_s": 0.0,
+        "volume_gain": 1.0,
+    }
 
 
 def test_all_effects_at_once_on_a_tension_only_muscle(bench):

@@ -332,7 +332,9 @@ class Effect:
             key = self.linear[0].key
             a = np.array(values.get(f"{key}_by_recording") or [values[key]] * cols.shape[1])
         else:
-            a = np.array([values[p.key] for p in self.linear])
+            a = np.array(
+                [values[p.key] if p.key in values or p.default is None else p.default for p in self.linear]
+            )
         return fixed + (cols @ a if len(a) else 0.0)
 
     def initial_state(self) -> list[float]:
@@ -594,15 +596,21 @@ class Drift(Effect):
 
 
 class PressureLag(Effect):
-    """Pressure lag: the internal pressure follows the measured one after a transport delay, through a first-order fill with gas-volume changes."""
+    """Pressure lag: the internal pressure follows the measured one after a transport delay, through a
+    first-order fill, less the pressure a change of the gas volume takes while the fill catches up.
+
+    How much of the volume change shows depends on where the lag sits: all of it (``volume_gain``
+    1, isothermal gas; up to 1.4 for a fast, adiabatic compression) when the lag is the flow into
+    the muscle, none (0) when it is a transducer's or a regulator's filter with the muscle refilled
+    at once. The gain weighs the force the volume term makes, so it enters linearly."""
 
     def __init__(self):
         super().__init__(
             name="pressure_lag",
             summary="the internal pressure lags the measured one (a line's transport delay, then valve, tube, gas volume)",
             equation=(
-                "dF = F(P_i, L) - F(P, L),  P_i = lag(P(t - d) - tau (P + P_atm) dV/dt / V, tau), "
-                "V = pi R_o(L)^2 L - V_B"
+                "dF = F(P_l, L) - F(P, L) + k [F(P_l - G, L) - F(P_l, L)],  P_l = lag(P(t - d), tau), "
+                "G = lag(tau (P + P_atm) dV/dt / V, tau), V = pi R_o(L)^2 L - V_B"
             ),
             params=(
                 Param(
@@ -617,12 +625,19 @@ class PressureLag(Effect):
                     "transport delay of the line",
                     default=0.0,
                 ),
+                Param(
+                    "volume_gain",
+                    0.0,
+                    1.5,
+                    meaning="share of the gas-volume change's pressure drop that reaches the force",
+                    default=1.0,
+                ),
             ),
-            state=("P_i", "V_prev"),
+            state=("P_l", "G", "V_prev"),
             plugin=(
-                "efam.muscle keys pressure_lag.tau_s and pressure_lag.delay_s on an actuator with dyntype "
-                "filterexact, dynprm = tau_s, actearly, and MuJoCo's own ctrl delay = delay_s (interp linear); "
-                "2 states for the gas-volume term"
+                "efam.muscle keys pressure_lag.tau_s, pressure_lag.delay_s and pressure_lag.volume_gain on an "
+                "actuator with dyntype filterexact, dynprm = tau_s, actearly, and MuJoCo's own ctrl delay = "
+                "delay_s (interp linear); 2 states for the gas-volume term"
             ),
             signature="force lagging pressure changes, and an error while the volume changes",
         )
@@ -655,20 +670,22 @@ class PressureLag(Effect):
         V = ctx.cached("V", lambda: gas_volume(m, ctx.L))
         dVdt = ctx.cached("dV", lambda: backward_rate(ctx.t, V, ctx.starts))
         P_line = ctx.cached(("delayed_P", d), lambda: delayed(ctx.t, ctx.P, d, ctx.starts))
-        drive = P_line - tau * (ctx.P + P_ATM) * dVdt / V
-        P_int = lag(ctx.t, drive, tau, ctx.starts)
-        return _gate(ctx, m.push(P_int, ctx.L) - ctx.base), np.zeros((ctx.n, 0))
+        P_l = lag(ctx.t, P_line, tau, ctx.starts)
+        G = lag(ctx.t, tau * (ctx.P + P_ATM) * dVdt / V, tau, ctx.starts)
+        lagged = m.push(P_l, ctx.L)
+        volume = m.push(P_l - G, ctx.L) - lagged
+        return _gate(ctx, lagged - ctx.base), _gate(ctx, volume[:, None])
 
     def initial_state(self) -> list:
-        """The lag and volume states, and the pressure history the delay reads (times, values)."""
-        return [0.0, 0.0, [], []]
+        """The two lag states, the volume, and the pressure history the delay reads (times, values)."""
+        return [0.0, 0.0, 0.0, [], []]
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the delayed, lagged internal pressure and the force change it makes; see :class:`Effect.step`."""
         m = s.muscle
         tau, d = v["tau_s"], v.get("delay_s", 0.0)
         V = float(gas_volume(m, s.L))
-        times, values = state[2], state[3]
+        times, values = state[3], state[4]
         if s.first:
             times.clear()
             values.clear()
@@ -677,12 +694,19 @@ class PressureLag(Effect):
         times.append(s.t)
         values.append(s.P)
         if s.first:
-            state[0], state[1] = P_line, V
+            state[0], state[1], state[2] = P_line, 0.0, V
             return 0.0
-        drive = P_line - tau * (s.P + P_ATM) * (V - state[1]) / max(s.dt, 1e-12) / V
-        state[0] += (1.0 - math.exp(-s.dt / tau)) * (drive - state[0])
-        state[1] = V
-        force = m.push(state[0], s.L) - m.push(s.P, s.L)
+        g = tau * (s.P + P_ATM) * (V - state[2]) / max(s.dt, 1e-12) / V
+        alpha = 1.0 - math.exp(-s.dt / tau)
+        state[0] += alpha * (P_line - state[0])
+        state[1] += alpha * (g - state[1])
+        state[2] = V
+        lagged = m.push(state[0], s.L)
+        force = (
+            lagged
+            + v.get("volume_gain", 1.0) * (m.push(state[0] - state[1], s.L) - lagged)
+            - m.push(s.P, s.L)
+        )
         return force if s.engaged else 0.0
 
 

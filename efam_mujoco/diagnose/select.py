@@ -290,7 +290,10 @@ class Engine:
         values: dict[str, dict[str, float]] = {}
         identifiable: dict[str, list[str]] = {}
         for effect, shape in zip(effects, shapes):
-            values[effect.name] = {p.key: 0.0 for p in effect.linear} | effect.settle(self.ctx, shape)
+            # an amplitude these data leave unidentified (a column without data) is written as its
+            # default where the physics has one (the pressure lag's volume gain: 1), else 0
+            unseen = {p.key: 0.0 if p.default is None else p.default for p in effect.linear}
+            values[effect.name] = unseen | effect.settle(self.ctx, shape)
             identifiable[effect.name] = list(shape)
         per_recording: dict[tuple[str, str], dict[int, float]] = {}
         for (name, key, scale), a in zip(owner, theta[k_model:]):

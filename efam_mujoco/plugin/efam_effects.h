@@ -53,7 +53,8 @@ typedef enum {
 typedef struct {
   const char* key;
   double lo, hi;  // inclusive, as effects.Param / check_values
-  int optional;   // may be absent (then 0), as effects.Param.default: a key added after files were written
+  int optional;    // may be absent, as effects.Param.default: a key added after files were written
+  double fallback;  // its value when absent (effects.Param.default)
 } EffectParam;
 
 typedef struct {
@@ -82,7 +83,7 @@ static const EffectSpec kEffects[NEFFECT] = {
      4,
      {{"d0_N_per_s", -1.0, 1.0}, {"d1_N_per_s", -10.0, 10.0}, {"d2_N_per_s_MPa", -10.0, 10.0}, {"tau_s", 30.0, 1e6}},
      0},
-    {"pressure_lag", 2, {{"tau_s", 0.002, 3.0}, {"delay_s", 0.0, 0.5, 1}}, 2},
+    {"pressure_lag", 3, {{"tau_s", 0.002, 3.0}, {"delay_s", 0.0, 0.5, 1, 0.0}, {"volume_gain", 0.0, 1.5, 1, 1.0}}, 2},
 };
 #define EFFECT_KNOWN "friction, viscoelasticity, end_effects, braid_compliance, softening, drift, pressure_lag"
 
@@ -314,7 +315,7 @@ static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx,
         continue;
       }
       const EffectParam* p = &kEffects[e].params[j];
-      double value = read_number(m, instance, key, !p->optional, 0.0);
+      double value = read_number(m, instance, key, !p->optional, p->fallback);
       if (!(p->lo <= value && value <= p->hi)) {
         EFFECT_ERROR(m, instance, "config key '%s' = %.10g is outside [%g, %g]", key, value, p->lo, p->hi);
       }
@@ -483,9 +484,10 @@ static double drift_step(const double* v, const EffectSample* s) {
   return s->engaged ? force : 0.0;
 }
 
-// PressureLag.step less the lag MuJoCo already applies: P_i = lag(P - g) = P_seen - lag(g) with
-// g = tau (P + P_atm) dV/dt / V; y = lag(g) and V_prev are the state. Returns the change of the
-// force the muscle's own evaluation (at P_seen) wrote.
+// PressureLag.step less the lag MuJoCo already applies: P_l = P_seen (the delayed, lagged control),
+// G = lag(g) with g = tau (P + P_atm) dV/dt / V, and the volume term's force weighted by
+// volume_gain k: F(P_seen) + k (F(P_seen - G) - F(P_seen)); y = G and V_prev are the state.
+// Returns the change of the force the muscle's own evaluation (at P_seen) wrote.
 static double pressure_lag_step(const EffectsMuscle* k, const double* v, double* y, const EffectSample* s) {
   double tau = v[0];
   double V = fx_gas_volume(k, s->L);
@@ -497,8 +499,11 @@ static double pressure_lag_step(const EffectsMuscle* k, const double* v, double*
   double g = tau * (s->P + EFFECT_P_ATM) * (V - y[1]) / (s->dt > 1e-12 ? s->dt : 1e-12) / V;
   y[0] += (1.0 - exp(-s->dt / tau)) * (g - y[0]);
   y[1] = V;
-  double total = s->engaged ? fx_push(k, s->P_seen - y[0], s->L) : fx_push(k, s->P, s->L);
-  return total - s->base;
+  if (!s->engaged) {
+    return fx_push(k, s->P, s->L) - s->base;
+  }
+  double lagged = fx_push(k, s->P_seen, s->L);
+  return lagged + v[2] * (fx_push(k, s->P_seen - y[0], s->L) - lagged) - s->base;
 }
 
 // The effects' force for one actuator; advances `state` (its block) by one sample.
