@@ -24,10 +24,13 @@ driven); every threshold comes from the recording's own noise and range:
   when it stands; ``rate_class`` 0/1 = slow/fast when the half-cycles run at clearly different
   rates (per driver).
 
-**Held-out folds** are whole half-cycles, dealt round-robin in time order into
-K = min(5, number of units) folds, so every fold holds rising and falling branches at several
-levels and positions in the test, and every fold's training set holds both directions at every
-level. When a test has fewer than 6 half-cycles (a single ramp up and down), each half-cycle is
+**Held-out folds** are whole half-cycles, dealt round-robin into K = min(5, number of units)
+folds, the rarest kinds first (a kind: the driver, and the lowest pressure reached in tenths of
+the top pressure), each kind in time order: every fold holds rising and falling branches at
+several levels and positions in the test, every fold's training set holds both directions at
+every level, and the few half-cycles that alone show a part of the state space (a sinusoidal
+test's pressurising and venting, an isometric test's strokes at zero pressure) land in different
+folds, so no training set lacks what its held-out fold asks about. When a test has fewer than 6 half-cycles (a single ramp up and down), each half-cycle is
 cut into contiguous time blocks until there are 6 units or more. ``Labels.folds_rule`` states
 which rule applied, for the report.
 """
@@ -277,7 +280,7 @@ def label(t, x, P, starts) -> Labels:
     hold_id = np.full(n, -1)
     for k, (s0, s1) in enumerate(_runs(hold)):
         hold_id[s0:s1] = k
-    fold, n_folds, rule = _folds(half_info, n, t)
+    fold, n_folds, rule = _folds(half_info, n, P)
     return Labels(
         driver=driver, rate=rate, direction=direction, moving=moving, hold=hold, hold_id=hold_id,
         cycle=cycle, level=level, levels_Pa=levels, cycle_in_level=cycle_in_level,
@@ -298,21 +301,34 @@ def _cluster(values: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     return np.array([float(np.median(c)) for c in centres]), labels
 
 
-def _folds(half_info, n, t) -> tuple[np.ndarray, int, str]:
-    """Half-cycles dealt round-robin into folds; cut into time blocks when there are too few."""
-    units = [(s0, s1) for s0, s1, _, _ in half_info]
+def _folds(half_info, n, P) -> tuple[np.ndarray, int, str]:
+    """Half-cycles dealt round-robin into folds, the rarest kinds first; cut into time blocks when there are too few."""
+    units = [(s0, s1, d) for s0, s1, d, _ in half_info]
     pieces = 1
     if len(units) < MIN_UNITS:
         pieces = int(np.ceil(MIN_UNITS / max(len(units), 1)))
         cut = []
-        for s0, s1 in units:
+        for s0, s1, d in units:
             edges = np.linspace(s0, s1, pieces + 1).round().astype(int)
-            cut += [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+            cut += [(int(a), int(b), d) for a, b in zip(edges[:-1], edges[1:]) if b > a]
         units = cut
     k = max(2, min(MAX_FOLDS, len(units)))
+    # a unit's kind: its driver (stroke or pressure ramp) and the lowest pressure it reaches (in
+    # tenths of the top pressure). The rarest kinds are dealt first, each in time order: the few
+    # units that alone show a part of the state space (a sinusoidal test's pressurising and
+    # venting, an isometric test's strokes at zero pressure) land in different folds, so no
+    # training set lacks what its held-out fold asks about; a common kind keeps the time order
+    # (branches of both directions at every level and position in the test in every fold)
+    top = max(float(np.max(P, initial=0.0)), 1.0)
+    kinds = [
+        (d, int(np.floor(10.0 * max(float(np.percentile(P[s0:s1], 2)), 0.0) / top))) for s0, s1, d in units
+    ]
+    count = {kind: kinds.count(kind) for kind in kinds}
+    order = sorted(range(len(units)), key=lambda i: (count[kinds[i]], kinds[i][1], kinds[i][0], units[i][0]))
     fold = np.zeros(n, dtype=int)
-    for i, (s0, s1) in enumerate(units):
-        fold[s0:s1] = i % k
+    for dealt, i in enumerate(order):
+        s0, s1, _ = units[i]
+        fold[s0:s1] = dealt % k
     if pieces == 1:
         rule = f"held out: whole half-cycles ({len(units)}), dealt round-robin into {k} folds"
     else:
