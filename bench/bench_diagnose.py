@@ -20,6 +20,7 @@ right answer).
 
 Usage: python bench/bench_diagnose.py [--per-family 76] [--seed 40000] [--jobs 2]
        python bench/bench_diagnose.py --calibrate   (fits confidence.Calibration on its own seeds)
+       python bench/bench_diagnose.py --calibrate --calibrate-rows A.json B.rows.jsonl   (from stored rows)
        python bench/bench_diagnose.py --speed --seed 89000   (30 000-sample recordings, one per family)
 Writes bench/results/diagnose.json (or diagnose_calibration.json) and docs/figures/diagnose_*.png.
 """
@@ -93,8 +94,10 @@ def calibration_plan() -> list[tuple[int, str, str]]:
     kinds (``MIX``). A plan cut short after its first seeds would hold the interleaving's early
     rows (every kind in turn) and so far more clean and two-effect cases than the benchmark: the
     maps would learn another base rate of effects that are there but hard to see."""
-    n_cal = CALIBRATION_SEEDS[1] - CALIBRATION_SEEDS[0] + 1
-    return plan(n_cal // len(V.FAMILIES), CALIBRATION_SEEDS[0])
+    cases = []
+    for lo, hi in CALIBRATION_SEEDS:
+        cases += plan((hi - lo + 1) // len(V.FAMILIES), lo)
+    return cases
 
 
 def correct(answer: str, kind: str, truth: list[str], shows: bool = True) -> bool:
@@ -284,6 +287,37 @@ def fit_calibration(rows: list[dict]) -> Calibration:
                        dn=float(wn[3]))  # fmt: skip
 
 
+def stored_rows(paths: list[str], cases: list[tuple[int, str, str]]) -> list[dict]:
+    """The rows of ``cases`` read from stored runs (``.rows.jsonl`` lines or a JSON's ``cases``),
+    each checked against its planned family and kind; a missing case is an error (a calibration
+    on part of its plan learns another mix)."""
+    found: dict[int, dict] = {}
+    for path in paths:
+        text = Path(path).read_text()
+        if path.endswith(".jsonl"):
+            rows = [json.loads(line) for line in text.splitlines() if line.strip()]
+        else:
+            rows = json.loads(text)["cases"]
+        for r in rows:
+            found[int(r["seed"])] = r
+    out, missing = [], []
+    for seed, family, kind in cases:
+        r = found.get(seed)
+        if r is None:
+            missing.append(seed)
+            continue
+        if (r["family"], r["kind"]) != (family, kind):
+            raise SystemExit(
+                f"stored row of seed {seed} is {r['family']}/{r['kind']}, the plan says {family}/{kind}"
+            )
+        out.append(r)
+    if missing:
+        raise SystemExit(
+            f"{len(missing)} calibration cases are not in the stored rows (first: seed {missing[0]})"
+        )
+    return out
+
+
 def rescore(rows: list[dict], cal: Calibration) -> list[dict]:
     """Rows with their verdicts recomputed under another calibration (the raw quantities kept)."""
     out = []
@@ -418,6 +452,13 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--calibrate", action="store_true", help="fit the probability map on the calibration seeds"
     )
+    ap.add_argument(
+        "--calibrate-rows",
+        nargs="+",
+        metavar="FILE",
+        help="with --calibrate: fit on the rows stored in these files (a run's .rows.jsonl, or a JSON with 'cases') "
+        "instead of running the calibration cases; every calibration seed must be there",
+    )
     ap.add_argument("--no-next", action="store_true", help="do not try the recommended next experiments")
     ap.add_argument("--out", default=None)
     ap.add_argument(
@@ -450,7 +491,10 @@ def main(argv=None) -> int:
         return 0
     if args.calibrate:
         cases = calibration_plan()
-        rows = run(cases, args.jobs, try_next=False)
+        if args.calibrate_rows:
+            rows = stored_rows(args.calibrate_rows, cases)
+        else:
+            rows = run(cases, args.jobs, try_next=False)
         cal = fit_calibration(rows)
         summary = summarise(rescore(rows, cal))
         print_summary(summary)
