@@ -425,3 +425,24 @@ def test_data_driven_correction_sees_a_pressure_transducer_error():
     assert c.heldout_rms_after_N < 0.6 * c.heldout_rms_before_N  # held out: the folds' unseen data
     assert c.heldout_rms_after_N < 1.5 * case.noise_N
     assert c.gain >= d.verdict.dd_gain  # no worse than the calibrated feature set alone
+
+
+def test_the_only_low_pressure_half_cycles_of_a_test_land_in_different_folds():
+    # pressurise at the rest length, nine half-cycles of a sinusoid at the top pressure, vent:
+    # dealt in time order alone, the first and the eleventh unit share fold 0 of 5, and the
+    # other folds' training sets never see a pressure below the top
+    hz = 50.0
+    ramp = np.arange(0, 5, 1 / hz)
+    sine = np.arange(0, 9 * 2.0, 1 / hz)  # a 4 s period: nine half-cycles of 2 s
+    t = np.r_[ramp, 5 + sine, 5 + sine[-1] + 1 / hz + ramp]
+    x = np.r_[np.zeros(len(ramp)), 0.15 * (1 - np.cos(np.pi * sine / 2.0)), np.full(len(ramp), 0.0)]
+    x[len(ramp) + len(sine) :] = x[len(ramp) + len(sine) - 1]
+    top = 300e3
+    P = np.r_[top * ramp / 5, np.full(len(sine), top), top * (1 - ramp / 5)]
+    labels = label(t, x, P, [0])
+    assert labels.n_folds == 5
+    low = P < 0.1 * top
+    for k in range(labels.n_folds):
+        held = labels.fold == k
+        assert (low & ~held).any(), f"fold {k}: its training set has no low pressure"
+    assert labels.fold[0] != labels.fold[-1]  # the pressurising and the venting ramp
