@@ -275,6 +275,10 @@ class Param:
     meaning: str = ""
     default: float | None = None  # an optional key's value when it is not given (older files)
 
+    def value_in(self, values: dict) -> float:
+        """This parameter's value in ``values``, its default when it is optional and absent."""
+        return values[self.key] if self.key in values or self.default is None else self.default
+
 
 @dataclass
 class Effect:
@@ -324,17 +328,13 @@ class Effect:
 
     def force(self, ctx: Context, values: dict[str, float]) -> np.ndarray:
         """The effect's added push force (N) at every sample of ``ctx`` for parameter ``values``."""
-        shape = {
-            p.key: values[p.key] if p.key in values or p.default is None else p.default for p in self.shapes
-        }
+        shape = {p.key: p.value_in(values) for p in self.shapes}
         fixed, cols = self.design(ctx, shape)
         if self.per_recording:
             key = self.linear[0].key
             a = np.array(values.get(f"{key}_by_recording") or [values[key]] * cols.shape[1])
         else:
-            a = np.array(
-                [values[p.key] if p.key in values or p.default is None else p.default for p in self.linear]
-            )
+            a = np.array([p.value_in(values) for p in self.linear])
         return fixed + (cols @ a if len(a) else 0.0)
 
     def initial_state(self) -> list[float]:

@@ -30,13 +30,15 @@ the top pressure), each kind in time order: every fold holds rising and falling 
 several levels and positions in the test, every fold's training set holds both directions at
 every level, and the few half-cycles that alone show a part of the state space (a sinusoidal
 test's pressurising and venting, an isometric test's strokes at zero pressure) land in different
-folds, so no training set lacks what its held-out fold asks about. When a test has fewer than 6 half-cycles (a single ramp up and down), each half-cycle is
-cut into contiguous time blocks until there are 6 units or more. ``Labels.folds_rule`` states
+folds, so no training set lacks what its held-out fold asks about. When a test has fewer than 6
+half-cycles (a single ramp up and down), each half-cycle is cut into contiguous time blocks until
+there are 6 units or more. ``Labels.folds_rule`` states
 which rule applied, for the report.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -302,7 +304,8 @@ def _cluster(values: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _folds(half_info, n, P) -> tuple[np.ndarray, int, str]:
-    """Half-cycles dealt round-robin into folds, the rarest kinds first; cut into time blocks when there are too few."""
+    """Half-cycles dealt round-robin into folds, the rarest kinds first; cut into time blocks
+    when there are too few."""
     units = [(s0, s1, d) for s0, s1, d, _ in half_info]
     pieces = 1
     if len(units) < MIN_UNITS:
@@ -323,7 +326,7 @@ def _folds(half_info, n, P) -> tuple[np.ndarray, int, str]:
     kinds = [
         (d, int(np.floor(10.0 * max(float(np.percentile(P[s0:s1], 2)), 0.0) / top))) for s0, s1, d in units
     ]
-    count = {kind: kinds.count(kind) for kind in kinds}
+    count = Counter(kinds)
     order = sorted(range(len(units)), key=lambda i: (count[kinds[i]], kinds[i][1], kinds[i][0], units[i][0]))
     fold = np.zeros(n, dtype=int)
     for dealt, i in enumerate(order):
