@@ -293,13 +293,19 @@ def stored_rows(paths: list[str], cases: list[tuple[int, str, str]]) -> list[dic
     on part of its plan learns another mix)."""
     found: dict[int, dict] = {}
     for path in paths:
-        text = Path(path).read_text()
-        if path.endswith(".jsonl"):
-            rows = [json.loads(line) for line in text.splitlines() if line.strip()]
-        else:
-            rows = json.loads(text)["cases"]
-        for r in rows:
-            found[int(r["seed"])] = r
+        try:
+            text = Path(path).read_text()
+            if path.endswith(".jsonl"):
+                rows = [json.loads(line) for line in text.splitlines() if line.strip()]
+            else:
+                rows = json.loads(text)["cases"]
+            for r in rows:
+                found[int(r["seed"])] = r
+        except OSError as e:
+            raise SystemExit(f"{path}: cannot read stored rows ({e.strerror})") from None
+        except (ValueError, KeyError, TypeError) as e:
+            raise SystemExit(f"{path}: not a benchmark run's rows (.rows.jsonl lines, or a JSON with 'cases' "
+                             f"whose rows have a 'seed'): {type(e).__name__}: {e}") from None  # fmt: skip
     out, missing = [], []
     for seed, family, kind in cases:
         r = found.get(seed)

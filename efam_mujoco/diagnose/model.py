@@ -7,7 +7,15 @@ would remove is parameter error, not missing physics. So the diagnosis first re-
 2. each law's fit refined together with the geometry (braid angle, resting diameter, bladder
    volume, dead band, law coefficients) by bounded non-linear least squares on a thinned sample;
 3. the law with the smallest BIC is the baseline;
-4. around it, the Jacobian of the push force with respect to all those parameters lets every
+4. that law is refined once more with one load-cell zero per recording as a nuisance, and once
+   without (the same start and budget); when the zeros lower the BIC (each counted as a
+   parameter) and one stands above the force noise, the law fitted beside them is the
+   baseline. Fitted without them the law bends to
+   take up an offset where the muscle carries load, which a ``force_offset`` term can no longer
+   show. The zeros are not part of the baseline: the library's ``force_offset`` names them. At
+   a single length a zero is the same as a change of the passive force, the fit improves
+   nothing and the gate keeps the plain law;
+5. around it, the Jacobian of the push force with respect to all those parameters lets every
    candidate effect be fitted *jointly* with small parameter corrections (a linearised refit),
    so an effect is credited only with what the parameters cannot absorb.
 
@@ -28,9 +36,13 @@ from ..calibrate import fit_law
 from ..muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle
 from ..recordings import Recording
 from ..stress import LAW_NAMES, LAWS, StressLaw
+from .effects import high_frequency_noise
 
 GEOMETRY = ("theta_rest_deg", "rest_diameter_m", "bladder_volume_m3", "deadband_Pa")
 FIT_SAMPLES = 3000
+#: a load-cell zero's scale and its bound either side of where the fit starts it (N)
+ZERO_SCALE_N = 1.0
+ZERO_SPAN_N = 100.0
 
 
 def names(law: str) -> tuple[str, ...]:
@@ -108,6 +120,7 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
     F = np.concatenate([r.force_N for r in recordings])
     step = max(1, len(P) // FIT_SAMPLES)
     Ps, Ls, Fs = P[::step], L[::step], F[::step]
+    rec = np.concatenate([np.full(len(r.force_N), i) for i, r in enumerate(recordings)])[::step]
     deadband_hi = _deadband_hi(P)
     start_muscle = replace(muscle, deadband_Pa=min(muscle.deadband_Pa, deadband_hi))
     results: dict[str, tuple[float, Muscle]] = {}
@@ -124,32 +137,66 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
     if not results:
         raise ValueError("no stress law could be fitted to the recordings")
     best = min(results, key=lambda law: results[law][0])
-    fitted = results[best][1]
+    noise = float(np.median([high_frequency_noise(r.force_N) for r in recordings]))
+    box = bounds(muscle, law=best, deadband_hi=deadband_hi)
+    fitted = _beside_zeros(results[best][1], best, Ps, Ls, Fs, box, rec, noise)
     by_law = {law: float(np.sqrt(np.mean((m.push(P, L) - F) ** 2))) for law, (_, m) in results.items()}
     return Refit(fitted, best, by_law[best], by_law, time.perf_counter() - start, muscle)
 
 
-def _refine(first: Muscle, law: str, P, L, F, box) -> Muscle:
+def _bic(rss: float, n: int, k: int) -> float:
+    """Bayesian information criterion of a least-squares fit (Gaussian errors, variance profiled)."""
+    return n * math.log(max(rss, 1e-300) / n) + k * math.log(n)
+
+
+def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float) -> Muscle:
+    """The law refined beside one load-cell zero per recording (``rec``: each sample's
+    recording) when the zeros lower the BIC and one of them stands above the force noise
+    ``noise_N``, else refined alone from the same start. A zero within the noise costs the law
+    nothing visible, and set aside it is what the effects would have to give back: a friction
+    whose mean is not zero left half a newton of it out of the final model."""
+    alone = _refine(fitted, law, P, L, F, box)
+    beside, zeros = _refine(fitted, law, P, L, F, box, rec)
+    k = len(names(law))
+    bic_alone = _bic(float(np.sum((alone.push(P, L) - F) ** 2)), len(F), k)
+    bic_beside = _bic(float(np.sum((beside.push(P, L) + zeros[rec] - F) ** 2)), len(F), k + len(zeros))
+    return beside if bic_beside < bic_alone and np.max(np.abs(zeros)) > noise_N else alone
+
+
+def _refine(first: Muscle, law: str, P, L, F, box, rec=None):
+    """Bounded least squares of the law and geometry from ``first``; with ``rec`` (each
+    sample's recording) also one force zero per recording, returned beside the muscle."""
     v0 = vector(first)
     lo, hi = box
     v0 = np.clip(v0, lo, hi)
     s = scales(v0)
-    last_good = [first]
+    n_zero = 0 if rec is None else int(rec.max()) + 1
+    rec = np.zeros(len(F), dtype=int) if rec is None else rec
+    # the zeros start where the start leaves them: each recording's mean residual
+    start_zero = np.array(
+        [np.mean(F[rec == i] - first.push(P[rec == i], L[rec == i])) for i in range(n_zero)]
+    )
+    zero_span = ZERO_SPAN_N / ZERO_SCALE_N
+
+    def zeros_of(u):
+        return start_zero + u[len(v0) :] * ZERO_SCALE_N if n_zero else np.zeros(1)
 
     def residual(u):
         try:
-            m = build(first, law, v0 + u * s)
+            m = build(first, law, v0 + u[: len(v0)] * s)
         except ValueError:
             return np.full(len(F), 1e3)
-        last_good[0] = m
-        return m.push(P, L) - F
+        return m.push(P, L) + zeros_of(u)[rec] - F
 
+    u_lo = np.r_[(lo - v0) / s, np.full(n_zero, -zero_span)]
+    u_hi = np.r_[(hi - v0) / s, np.full(n_zero, zero_span)]
     try:
-        sol = least_squares(residual, np.zeros(len(v0)), bounds=((lo - v0) / s, (hi - v0) / s),
+        sol = least_squares(residual, np.zeros(len(v0) + n_zero), bounds=(u_lo, u_hi),
                             method="trf", x_scale=1.0, max_nfev=60, tr_solver="lsmr")  # fmt: skip
-        return build(first, law, v0 + sol.x * s)
+        m = build(first, law, v0 + sol.x[: len(v0)] * s)
+        return (m, zeros_of(sol.x)) if n_zero else m
     except ValueError:
-        return first
+        return (first, start_zero) if n_zero else first
 
 
 # ----------------------------------------------------------------------- linearised model
