@@ -10,9 +10,8 @@ would remove is parameter error, not missing physics. So the diagnosis first re-
 4. that law is refined once more with one load-cell zero per recording as a nuisance, and once
    without (the same start and budget); when the zeros lower the BIC (each counted as a
    parameter) and one stands above the force noise, the law fitted beside them is the
-   baseline. Fitted without them the law bends to
-   take up an offset where the muscle carries load, which a ``force_offset`` term can no longer
-   show. The zeros are not part of the baseline: the library's ``force_offset`` names them. At
+   baseline. Fitted without them the law bends to take up an offset where the muscle carries
+   load, which a ``force_offset`` term can no longer show. The zeros are not part of the baseline: the library's ``force_offset`` names them. At
    a single length a zero is the same as a change of the passive force, the fit improves
    nothing and the gate keeps the plain law;
 5. around it, the Jacobian of the push force with respect to all those parameters lets every
@@ -40,8 +39,7 @@ from .effects import high_frequency_noise
 
 GEOMETRY = ("theta_rest_deg", "rest_diameter_m", "bladder_volume_m3", "deadband_Pa")
 FIT_SAMPLES = 3000
-#: a load-cell zero's scale and its bound either side of where the fit starts it (N)
-ZERO_SCALE_N = 1.0
+#: a load-cell zero's bound either side of where the fit starts it (N; fitted in newtons)
 ZERO_SPAN_N = 100.0
 
 
@@ -129,11 +127,9 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
             first = fit_law(start_muscle, recordings, law, fit_deadband=True, objective="lsq").muscle
         except ValueError:
             continue
-        fitted = _refine(first, law, Ps, Ls, Fs, bounds(muscle, law, deadband_hi))
+        fitted, _ = _refine(first, law, Ps, Ls, Fs, bounds(muscle, law, deadband_hi))
         rss = float(np.sum((fitted.push(Ps, Ls) - Fs) ** 2))
-        k = len(names(law))
-        bic = len(Fs) * math.log(max(rss, 1e-300) / len(Fs)) + k * math.log(len(Fs))
-        results[law] = (bic, fitted)
+        results[law] = (_bic(rss, len(Fs), len(names(law))), fitted)
     if not results:
         raise ValueError("no stress law could be fitted to the recordings")
     best = min(results, key=lambda law: results[law][0])
@@ -155,7 +151,7 @@ def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float) -
     ``noise_N``, else refined alone from the same start. A zero within the noise costs the law
     nothing visible, and set aside it is what the effects would have to give back: a friction
     whose mean is not zero left half a newton of it out of the final model."""
-    alone = _refine(fitted, law, P, L, F, box)
+    alone, _ = _refine(fitted, law, P, L, F, box)
     beside, zeros = _refine(fitted, law, P, L, F, box, rec)
     k = len(names(law))
     bic_alone = _bic(float(np.sum((alone.push(P, L) - F) ** 2)), len(F), k)
@@ -163,40 +159,35 @@ def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float) -
     return beside if bic_beside < bic_alone and np.max(np.abs(zeros)) > noise_N else alone
 
 
-def _refine(first: Muscle, law: str, P, L, F, box, rec=None):
-    """Bounded least squares of the law and geometry from ``first``; with ``rec`` (each
-    sample's recording) also one force zero per recording, returned beside the muscle."""
+def _refine(first: Muscle, law: str, P, L, F, box, rec=None) -> tuple[Muscle, np.ndarray]:
+    """Bounded least squares of the law and geometry from ``first``, and the muscle's force
+    zeros: with ``rec`` (each sample's recording) one fitted per recording, else none."""
     v0 = vector(first)
     lo, hi = box
     v0 = np.clip(v0, lo, hi)
     s = scales(v0)
     n_zero = 0 if rec is None else int(rec.max()) + 1
-    rec = np.zeros(len(F), dtype=int) if rec is None else rec
     # the zeros start where the start leaves them: each recording's mean residual
     start_zero = np.array(
         [np.mean(F[rec == i] - first.push(P[rec == i], L[rec == i])) for i in range(n_zero)]
     )
-    zero_span = ZERO_SPAN_N / ZERO_SCALE_N
-
-    def zeros_of(u):
-        return start_zero + u[len(v0) :] * ZERO_SCALE_N if n_zero else np.zeros(1)
 
     def residual(u):
         try:
             m = build(first, law, v0 + u[: len(v0)] * s)
         except ValueError:
             return np.full(len(F), 1e3)
-        return m.push(P, L) + zeros_of(u)[rec] - F
+        zeros = (start_zero + u[len(v0) :])[rec] if n_zero else 0.0
+        return m.push(P, L) + zeros - F
 
-    u_lo = np.r_[(lo - v0) / s, np.full(n_zero, -zero_span)]
-    u_hi = np.r_[(hi - v0) / s, np.full(n_zero, zero_span)]
+    u_lo = np.r_[(lo - v0) / s, np.full(n_zero, -ZERO_SPAN_N)]
+    u_hi = np.r_[(hi - v0) / s, np.full(n_zero, ZERO_SPAN_N)]
     try:
         sol = least_squares(residual, np.zeros(len(v0) + n_zero), bounds=(u_lo, u_hi),
                             method="trf", x_scale=1.0, max_nfev=60, tr_solver="lsmr")  # fmt: skip
-        m = build(first, law, v0 + sol.x[: len(v0)] * s)
-        return (m, zeros_of(sol.x)) if n_zero else m
+        return build(first, law, v0 + sol.x[: len(v0)] * s), start_zero + sol.x[len(v0) :]
     except ValueError:
-        return (first, start_zero) if n_zero else first
+        return first, start_zero
 
 
 # ----------------------------------------------------------------------- linearised model
