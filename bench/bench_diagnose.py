@@ -214,6 +214,10 @@ def summarise(rows: list[dict]) -> dict:
             "outside_wrong_name_p08": _frac(r["answer"] not in ("none", OUTSIDE) and r["probability"] >= 0.8 for r in outside),
             "outside_dd_improves": _frac(r["dd_heldout_after_N"] < 0.98 * r["dd_heldout_before_N"] for r in outside),
             "next_tried": len(amb), "next_resolved": _frac(r["next"]["resolved"] for r in amb),
+            # beside it: the cases whose recommendation the design expected to decide (z >= 1;
+            # below, the report says it is not expected to), and how many of them it resolved
+            "next_expected_to_decide": sum((r["next"].get("expected_z") or 0.0) >= 1.0 for r in amb),
+            "next_resolved_expected": _frac(r["next"]["resolved"] for r in amb if (r["next"].get("expected_z") or 0.0) >= 1.0),
             # beside it (not the goal's figure): the pair told apart and the answer right, at any
             # probability (rows from before the field was recorded give None)
             "next_separated_right": _frac(

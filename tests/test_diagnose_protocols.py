@@ -142,27 +142,39 @@ def test_log_ratio_test_sees_an_advantage_concentrated_in_a_few_blocks():
     assert abs(paired_log_z(block_sse(other, blocks), sse_good)) < 3
 
 
+def _sine_strokes_at_300_kPa():
+    """FAM1 stroked about 15 % strain (+-10 %, 10 s period) at 300 kPa for 40 s: its context, and
+    the columns its own parameter corrections move over a candidate test."""
+    from efam_mujoco.diagnose.model import linearise
+
+    muscle = load_muscle("FAM1")
+    t = np.arange(0, 40, 0.02)
+    L = muscle.rest_length_m * (1.0 + 0.15 + 0.1 * np.sin(2 * np.pi * t / 10))
+    P = np.full_like(t, 300e3)
+    ctx = Context.from_recordings([Recording(t, L, P, muscle.push(P, L))], muscle)
+
+    def absorb(t_, L_, P_):
+        return linearise(muscle, P_, L_, muscle).J
+
+    return muscle, ctx, absorb
+
+
+def _friction(muscle, f0_N: float) -> EffectModel:
+    return EffectModel(muscle, [("friction", {"f0_N": f0_N, "f1_N_per_MPa": 10.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
+                                              "slip_strain": 0.005, "slip_kPa": 10.0})])  # fmt: skip
+
+
 def test_a_difference_a_parameter_refit_makes_does_not_count_as_separation():
     # two models that differ only by the muscle's own parameters (a braid angle / dead band step
     # along the linearisation): whatever the raw difference, a re-fit takes it up; a friction
     # term on top of the same muscle is not taken up
     from efam_mujoco.diagnose.model import linearise
 
-    muscle = load_muscle("FAM1")
-    rest = muscle.rest_length_m
-    t = np.arange(0, 40, 0.02)
-    L = rest * (1.0 + 0.15 + 0.1 * np.sin(2 * np.pi * t / 10))
-    P = np.full_like(t, 300e3)
-    ctx = Context.from_recordings([Recording(t, L, P, muscle.push(P, L))], muscle)
-    lin = linearise(muscle, P, L, muscle)
+    muscle, ctx, absorb = _sine_strokes_at_300_kPa()
+    lin = linearise(muscle, ctx.P, ctx.L, muscle)
     shifted = EffectModel(lin.muscle_for(0.5 * np.ones(len(lin.keep))), [])
     plain = EffectModel(muscle, [])
-    friction = EffectModel(muscle, [("friction", {"f0_N": 5.0, "f1_N_per_MPa": 10.0, "g0_N": 0.0,
-                                                  "g1_N_per_MPa": 0.0, "slip_strain": 0.005, "slip_kPa": 10.0})])  # fmt: skip
-
-    def absorb(P_, L_):
-        return linearise(muscle, P_, L_, muscle).J
-
+    friction = _friction(muscle, 5.0)
     for e in candidates(ctx, 0.01):
         t_, L_, P_ = e.sampled()
         raw = float(np.std(shifted.push(t_, L_, P_) - plain.push(t_, L_, P_)))
@@ -171,6 +183,44 @@ def test_a_difference_a_parameter_refit_makes_does_not_count_as_separation():
         moved = unabsorbed(friction, plain, e)  # a strain friction shows where strokes reverse
         if moved > 2.0:
             assert unabsorbed(friction, plain, e, absorb) > 0.2 * moved
+
+
+def test_two_fits_of_one_effect_are_not_separated_by_any_experiment():
+    # two fitted models that differ only in an effect's amplitude (a friction of 5 N or 2 N):
+    # whatever the test, the rival's own re-fit on the joined data takes the difference up, so no
+    # candidate may promise a decision; counted against the muscle's parameters alone, the
+    # same pair looks decidable. A friction against a viscoelasticity stays decidable.
+    from functools import partial
+
+    from efam_mujoco.diagnose import _own_columns
+
+    muscle, ctx, absorb = _sine_strokes_at_300_kPa()
+    models = {"friction": _friction(muscle, 5.0), "friction_refit": _friction(muscle, 2.0)}
+    rivals = {h: partial(_own_columns, m, muscle) for h, m in models.items()}
+    naive = recommend(models, ctx, 0.01, 0.3, absorb=absorb)
+    assert naive["recommended"]["expected_z"] > 3.0
+    plan = recommend(models, ctx, 0.01, 0.3, absorb=absorb, rivals=rivals)
+    assert max(c["expected_z"] for c in plan["candidates"]) < 0.1
+    assert max(c["unabsorbed_rms_N"] for c in plan["candidates"]) < 0.01
+    visco = EffectModel(muscle, [("viscoelasticity", {"k0_N": 60.0, "k1_N_per_MPa": 200.0, "tau_s": 2.0})])
+    models = {"friction": _friction(muscle, 5.0), "viscoelasticity": visco}
+    rivals = {h: partial(_own_columns, m, muscle) for h, m in models.items()}
+    plan = recommend(models, ctx, 0.01, 0.3, absorb=absorb, rivals=rivals)
+    assert plan["recommended"]["expected_z"] > 3.0
+
+
+def test_each_way_round_counts_except_where_the_rival_contains_the_truth():
+    from efam_mujoco.diagnose.design import directions
+
+    assert directions("friction", "viscoelasticity") == [
+        ("friction", "viscoelasticity"),
+        ("viscoelasticity", "friction"),
+    ]
+    # none lies inside any effect (its amplitudes at 0): the effect must show where none cannot follow
+    assert directions("none", "drift") == [("drift", "none")]
+    assert directions("drift", "none") == [("drift", "none")]
+    # a named model lies inside itself plus the data-driven correction
+    assert directions("end_effects", OUTSIDE) == [(OUTSIDE, "end_effects")]
 
 
 def test_a_clean_file_is_not_doubted_when_the_correction_gains_one_percent():
@@ -185,6 +235,59 @@ def test_a_clean_file_is_not_doubted_when_the_correction_gains_one_percent():
     v = verdict({"none": 1.0, "friction": 0.0}, excess_cut=0.1, dd_gain=0.4, n_blocks=30, excess=0.8,
                 dd_gain_none=0.4, block_sse=sse, dd_z=6.0, dd_z_none=6.0, excess_left=0.8)  # fmt: skip
     assert v.probabilities[OUTSIDE] > 0.5
+
+
+def test_a_significant_but_immaterial_structure_does_not_let_outside_compete():
+    # the correction gains 4 % and significantly (z 5), but the model alone leaves a held-out
+    # mean square only 7 % above the noise (a structure of a quarter of the noise's RMS): not
+    # "structured residual above the noise"; from 20 % (half the noise's RMS) it competes
+    sse = {"none": np.ones(30), "friction": np.ones(30) * 1.01}
+    kwargs = dict(
+        excess_cut=0.1, dd_gain=0.0, n_blocks=30, dd_gain_none=0.04, block_sse=sse, dd_z=0.0, dd_z_none=5.0
+    )
+    small = verdict({"none": 1.0, "friction": 0.0}, excess=0.07, excess_left=0.07, **kwargs)
+    assert not small.outside_supported and OUTSIDE not in small.probabilities
+    material = verdict({"none": 1.0, "friction": 0.0}, excess=0.25, excess_left=0.25, **kwargs)
+    assert material.outside_supported and OUTSIDE in material.probabilities
+
+
+@pytest.mark.parametrize("hz", [26.0, 30.0, 100.0, 500.0])
+def test_the_errors_in_variables_column_is_the_sensor_noise_not_the_regulator(hz):
+    # a regulator (second order, 1 Hz, damping 0.6, integrated finely) steps the pressure every
+    # 15 s; the transducer adds 0.7 kPa of white noise. The column should follow the force error
+    # that noise causes (dF/dP x noise), and the regulator's real settling should stay out of it:
+    # at 26 Hz a 5-sample window spans 0.15 s and its column is more settling than noise
+    # (real part / noise part 1.06, correlation with the noise term 0.61)
+    muscle = load_muscle("FAM1")
+    t = np.arange(0, 60, 1 / hz)
+    setpoint = np.select([t < 15, t < 30, t < 45], [0.0, 300e3, 150e3], 400e3)
+    wn, zeta, fine = 2 * np.pi, 0.6, 20
+    p, v, P = 0.0, 0.0, np.empty_like(t)
+    for i in range(len(t)):
+        for _ in range(fine):
+            v += (wn * wn * (setpoint[i] - p) - 2 * zeta * wn * v) / hz / fine
+            p += v / hz / fine
+        P[i] = p
+    L = np.full_like(t, 1.2 * muscle.rest_length_m)
+    noise = np.random.default_rng(1).normal(0.0, 700.0, len(t))
+    real = Context(t, L, P, [0], muscle).input_noise()
+    noisy = Context(t, L, P + noise, [0], muscle)
+    column = noisy.input_noise()
+    assert np.corrcoef(column, noisy.dF_dP() * noise)[0, 1] > 0.7
+    assert np.std(real) < 0.5 * np.std(column - real)
+
+
+@pytest.mark.parametrize("seed", [94096, 94176])
+def test_clean_low_rate_strokes_through_regulator_transients_raise_no_alarm(seed):
+    # isobaric strokes recorded at 26-30 Hz through a second-order regulator with a ripple: the
+    # pressure changes between samples are real, and the errors-in-variables column must not
+    # take them for sensor noise (a 5-sample window did: "outside the library" was answered)
+    case = V.draw_case(seed, "isobaric", "clean")
+    recording = V.make(case)
+    assert case.sample_hz < 31
+    d = diagnose([recording], load_muscle(case.base_name), next_experiment=False)
+    assert d.verdict.answer == "none"
+    assert not d.verdict.outside_supported
 
 
 def test_two_effects_are_ambiguous_only_when_the_paired_test_cannot_separate_them():
@@ -257,8 +360,8 @@ def test_the_calibration_cases_have_the_benchmarks_mix():
     for kind, goal in bench.MIX.items():
         assert share[kind] / len(cases) == pytest.approx(goal, abs=0.01), kind
     assert set(Counter(family for _, family, _ in cases).values()) == {len(cases) // len(V.FAMILIES)}
-    # the documented run's seeds (94000+) do not overlap the calibration's
-    assert not {seed for seed, _, _ in bench.plan(76, 94000)} & set(seeds)
+    # the documented run's seeds (97000+) do not overlap the calibration's
+    assert not {seed for seed, _, _ in bench.plan(76, 97000)} & set(seeds)
 
 
 def _bench():

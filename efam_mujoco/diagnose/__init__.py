@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -239,9 +240,12 @@ def diagnose(
             models[OUTSIDE] = Corrected(models[other], corr_other)
             models = {other: models[other], OUTSIDE: models[OUTSIDE]}
 
-        # a difference the re-fitted muscle's own parameters could make on the candidate separates nothing
-        def absorb(P, L):
+        # a difference the re-fitted muscle's own parameters could make on the candidate
+        # separates nothing, nor one the rival hypothesis's own amplitudes could make there
+        def absorb(t, L, P):
             return linearise(fitted.muscle, P, L, muscle, span=SPAN).J
+
+        rivals = {h: partial(_own_columns, m, fitted.muscle) for h, m in models.items()}
 
         # what the data already say, block by block: it spreads the bootstrap's draws
         (ha, hb) = list(models)[:2]
@@ -256,7 +260,7 @@ def diagnose(
             before = sse[ha] - sse[hb] if ha in sse and hb in sse else None
         half_before = int(labels.half_cycle.max()) + 1 if labels.half_cycle is not None else 1
         design = recommend(models, ctx, stroke_speed(ctx, labels), noise, absorb=absorb, before=before,
-                           half_cycles_before=half_before)  # fmt: skip
+                           half_cycles_before=half_before, rivals=rivals)  # fmt: skip
 
     muscle_before, _ = _polish(recordings, base, lin, force, labels)
     predicted_before = muscle_before.push(ctx.P, ctx.L)
@@ -335,6 +339,21 @@ def _model_of(hypothesis: str, singles: dict, base: Fit, lin) -> EffectModel:
     effect = get(hypothesis)
     values = {p.key: min(max(float(fit.values[hypothesis][p.key]), p.lo), p.hi) for p in effect.params}
     return EffectModel(lin.muscle_for(fit.du), [(hypothesis, values)])
+
+
+def _own_columns(model, muscle: Muscle, t, L, P) -> np.ndarray:
+    """The force columns a hypothesis's own re-fit moves over a new test (time t, length L,
+    pressure P): each named effect's amplitudes at its fitted shapes and time constants, and for
+    'outside the library' the data-driven correction's coefficients as well."""
+    there = Context(t - t[0], L, P, [0], muscle)
+    cols = [np.zeros((len(t), 0))]
+    if isinstance(model, Corrected):
+        cols.append(model.correction.columns(there))
+        model = model.model
+    for name, values in model.effects:
+        effect = get(name)
+        cols.append(effect.design(there, {p.key: p.value_in(values) for p in effect.shapes})[1])
+    return np.column_stack(cols)
 
 
 def _unexplained(ctx, labels, residual, noise, corr: Correction) -> dict:

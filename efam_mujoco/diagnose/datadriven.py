@@ -66,6 +66,16 @@ class Correction:
             np.zeros(ctx.n),
         )
 
+    def columns(self, ctx: Context) -> np.ndarray:
+        """The selected features on other data (n x terms), each free to take another amplitude:
+        what a re-fit of the correction could make there."""
+        if not self.terms:
+            return np.zeros((ctx.n, 0))
+        X, names, _ = features(ctx, self.spec)
+        index = {n: i for i, n in enumerate(names)}
+        picked = [X[:, index[t]] for t in self.terms if t in index]
+        return np.column_stack(picked) if picked else np.zeros((ctx.n, 0))
+
     @property
     def gain(self) -> float:
         """Fraction of the held-out RMS that the correction removes (0 when there was nothing to remove)."""
