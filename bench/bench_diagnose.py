@@ -193,6 +193,7 @@ def summarise(rows: list[dict]) -> dict:
         clean = [r for r in sub if r["kind"] == "clean"]
         outside = [r for r in sub if r["kind"] == "outside"]
         amb = [r for r in sub if r["next"] is not None]
+        expected = [r for r in amb if (r["next"].get("expected_z") or 0.0) >= 1.0]
         out["by_family"][family] = {
             "n": len(sub), "in_library": len(inlib), "clean": len(clean), "outside": len(outside),
             "top1_confident": _frac(r["correct"] for r in conf), "confident": len(conf),
@@ -216,8 +217,8 @@ def summarise(rows: list[dict]) -> dict:
             "next_tried": len(amb), "next_resolved": _frac(r["next"]["resolved"] for r in amb),
             # beside it: the cases whose recommendation the design expected to decide (z >= 1;
             # below, the report says it is not expected to), and how many of them it resolved
-            "next_expected_to_decide": sum((r["next"].get("expected_z") or 0.0) >= 1.0 for r in amb),
-            "next_resolved_expected": _frac(r["next"]["resolved"] for r in amb if (r["next"].get("expected_z") or 0.0) >= 1.0),
+            "next_expected_to_decide": len(expected),
+            "next_resolved_expected": _frac(r["next"]["resolved"] for r in expected),
             # beside it (not the goal's figure): the pair told apart and the answer right, at any
             # probability (rows from before the field was recorded give None)
             "next_separated_right": _frac(

@@ -54,26 +54,24 @@ class Correction:
     #: predicted unseen data worse than the model alone, so it is not reported)
     raw_gain: float = 0.0
 
-    def predict(self, ctx: Context) -> np.ndarray:
-        """The correction (N, push sign) on other data, e.g. a proposed experiment (the features
-        rebuilt with the centres and scales of the data it was fitted on)."""
+    def _selected(self, ctx: Context) -> list[tuple[np.ndarray, float]]:
+        """The selected features rebuilt on ``ctx`` (with the centres and scales of the data
+        they were fitted on), each with its coefficient; a term the new data cannot build is
+        left out."""
         if not self.terms:
-            return np.zeros(ctx.n)
+            return []
         X, names, _ = features(ctx, self.spec)
         index = {n: i for i, n in enumerate(names)}
-        return sum(
-            (c * X[:, index[t]] for t, c in zip(self.terms, self.coefficients_N) if t in index),
-            np.zeros(ctx.n),
-        )
+        return [(X[:, index[t]], c) for t, c in zip(self.terms, self.coefficients_N) if t in index]
+
+    def predict(self, ctx: Context) -> np.ndarray:
+        """The correction (N, push sign) on other data, e.g. a proposed experiment."""
+        return sum((c * x for x, c in self._selected(ctx)), np.zeros(ctx.n))
 
     def columns(self, ctx: Context) -> np.ndarray:
         """The selected features on other data (n x terms), each free to take another amplitude:
         what a re-fit of the correction could make there."""
-        if not self.terms:
-            return np.zeros((ctx.n, 0))
-        X, names, _ = features(ctx, self.spec)
-        index = {n: i for i, n in enumerate(names)}
-        picked = [X[:, index[t]] for t in self.terms if t in index]
+        picked = [x for x, _ in self._selected(ctx)]
         return np.column_stack(picked) if picked else np.zeros((ctx.n, 0))
 
     @property

@@ -242,17 +242,15 @@ def _spread(d: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(np.mean(d * d))), float(np.max(np.abs(d)))
 
 
-def _left_after_projection(d: np.ndarray, t: np.ndarray, L: np.ndarray, P: np.ndarray, absorb=None) -> float:
-    left = _left_series(d, t, L, P, absorb)
-    return float(np.sqrt(np.mean(left * left)))
-
-
-def _left_series(d: np.ndarray, t: np.ndarray, L: np.ndarray, P: np.ndarray, absorb=None) -> np.ndarray:
+def _left_series(d: np.ndarray, *columns) -> np.ndarray:
+    """``d`` less its least-squares projection on a constant and on the given column blocks
+    (n x k arrays; None or empty blocks are skipped)."""
     cols = [np.ones_like(d)]
-    if absorb is not None:
-        J = np.asarray(absorb(t, L, P), float)
-        if J.ndim == 2 and J.shape[1]:
-            cols.append(J)
+    for J in columns:
+        if J is not None:
+            J = np.asarray(J, float)
+            if J.ndim == 2 and J.shape[1]:
+                cols.append(J)
     A = np.column_stack(cols)
     scale = np.sqrt(np.mean(A * A, axis=0)) + 1e-300
     coef, *_ = np.linalg.lstsq(A / scale, d, rcond=None)
@@ -269,7 +267,9 @@ def unabsorbed(a: EffectModel, b: EffectModel, experiment: Experiment, absorb=No
     least-squares projection on a constant and on ``absorb(t, L, P)`` (columns: force changes a
     re-fit could make there: the model's own parameter corrections, the contenders' amplitudes),
     i.e. what no re-fit could take up."""
-    return _left_after_projection(*_difference(a, b, experiment), absorb)
+    d, t, L, P = _difference(a, b, experiment)
+    left = _left_series(d, None if absorb is None else absorb(t, L, P))
+    return float(np.sqrt(np.mean(left * left)))
 
 
 def blocks_of(
@@ -335,23 +335,17 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     already recorded; ``half_cycles_before``: their half-cycle count."""
     (na, a), (nb, b) = list(models.items())[:2]
     rivals = rivals or {}
-
-    def columns_for(rival):
-        own = rivals.get(rival)
-        if own is None:
-            return absorb
-        if absorb is None:
-            return own
-        return lambda t, L, P: np.column_stack([absorb(t, L, P), own(t, L, P)])
-
-    ways = [columns_for(rival) for _, rival in directions(na, nb)]
+    own_columns = [rivals.get(rival) for _, rival in directions(na, nb)]
     scored, gaps = [], {}
     for e in candidates(ctx, speed):
         try:
             d, t, L, P = _difference(a, b, e)  # the two models simulated once per candidate
             rms, peak = _spread(d)
             block = blocks_of(e, ctx.muscle, SAMPLE_HZ, half_cycles_before)
-            lefts = [_left_series(d, t, L, P, cols) for cols in ways]
+            model_cols = None if absorb is None else absorb(t, L, P)  # shared by both ways round
+            lefts = [
+                _left_series(d, model_cols, None if own is None else own(t, L, P)) for own in own_columns
+            ]
         except ValueError:
             continue
         # block sums at the recorded rate (simulated at SAMPLE_HZ), each way round
