@@ -92,6 +92,19 @@ def test_a_load_cell_zero_is_left_to_the_residual_not_bent_into_the_law(seed):
     assert np.sqrt(np.mean((law - clean.force_N) ** 2)) < 1.5 * truth.noise_N
 
 
+def test_every_law_is_offered_the_zero_not_only_the_best_plain_fit():
+    # a 6.9 N load-cell zero on pressure staircases at two lengths (virtual bench, retired seed
+    # 97205; its muscle's law is the exponent law): the polynomial law bends best around the
+    # zero (1.78 N RMS alone, 1.32 N beside a zero it cannot then find); the exponent law beside
+    # its zero reaches the noise. Only the best plain law was offered the zero before.
+    case = V.draw_case(97205, "isometric", "single")
+    recording = V.make(case)
+    fitted = refit(load_muscle(case.base_name), [recording]).muscle
+    left = recording.force_N - fitted.push(recording.pressure_Pa, recording.length_m)
+    assert np.mean(left) == pytest.approx(case.params["force_offset"]["offset_N"], abs=0.3)
+    assert np.std(left) < 1.2 * case.noise_N
+
+
 # ----------------------------------------------------------------------------- confidence
 def test_bootstrap_is_sure_of_a_clear_winner_and_splits_a_tie():
     rng = np.random.default_rng(0)
@@ -277,6 +290,26 @@ def test_the_errors_in_variables_column_is_the_sensor_noise_not_the_regulator(hz
     assert np.std(real) < 0.5 * np.std(column - real)
 
 
+def test_pressure_steps_do_not_swamp_the_errors_in_variables_column():
+    # a valve steps the pressure between holds within one sample (48 Hz) while strokes run;
+    # the transducer adds 0.7 kPa of white noise. The column is regressed on the force error
+    # that noise causes: the few samples at the steps (deviations of 100 kPa) must not decide
+    # its coefficient. With them in the column the coefficient was 0.03 and the correlation
+    # 0.14: the column no longer took out the sensor noise's force error at all.
+    muscle = load_muscle("FAM1")
+    t = np.arange(0, 240, 1 / 48.0)
+    P = np.array([280e3, 100e3, 520e3, 300e3])[np.minimum(t // 60, 3).astype(int)]
+    L = muscle.rest_length_m * (1 + 0.25 * (1 - np.cos(2 * np.pi * t / 20)))
+    noise = np.random.default_rng(3).normal(0.0, 700.0, len(t))
+    noisy = Context(t, L, P + noise, [0], muscle)
+    column, target = noisy.input_noise(), noisy.dF_dP() * noise
+    assert 0.9 < (column @ target) / (column @ column) < 1.1
+    assert np.corrcoef(column, target)[0, 1] > 0.85
+    # the force error the window mean's own noise leaves: dF/dP x 0.7 kPa / sqrt(5)
+    expected = np.sqrt(np.mean(noisy.dF_dP() ** 2)) * 700.0 / np.sqrt(5)
+    assert noisy.input_noise_floor() == pytest.approx(expected, rel=0.1)
+
+
 @pytest.mark.parametrize("seed", [94096, 94176])
 def test_clean_low_rate_strokes_through_regulator_transients_raise_no_alarm(seed):
     # isobaric strokes recorded at 26-30 Hz through a second-order regulator with a ripple: the
@@ -360,8 +393,8 @@ def test_the_calibration_cases_have_the_benchmarks_mix():
     for kind, goal in bench.MIX.items():
         assert share[kind] / len(cases) == pytest.approx(goal, abs=0.01), kind
     assert set(Counter(family for _, family, _ in cases).values()) == {len(cases) // len(V.FAMILIES)}
-    # the documented run's seeds (97000+) do not overlap the calibration's
-    assert not {seed for seed, _, _ in bench.plan(76, 97000)} & set(seeds)
+    # the documented run's seeds (98000+) do not overlap the calibration's
+    assert not {seed for seed, _, _ in bench.plan(76, 98000)} & set(seeds)
 
 
 def _bench():

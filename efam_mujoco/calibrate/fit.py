@@ -509,8 +509,9 @@ def eq14_table(points: ComparisonPoints, model_tension: np.ndarray) -> dict[str,
 
 def eq14_value(points: ComparisonPoints, rel_pct: np.ndarray) -> float:
     """Eq. 14 from per-point relative errors (%): the mean over levels of each level's mean (k > 0)."""
-    per_level = [np.mean(rel_pct[(points.level == j) & (points.k > 0)]) for j in np.unique(points.level)]
-    per_level = [v for v in per_level if np.isfinite(v)]
+    # a level with no point above the blocked one (k = 0) has no mean and is left out
+    at_levels = [(points.level == j) & (points.k > 0) for j in np.unique(points.level)]
+    per_level = [v for v in (np.mean(rel_pct[at]) for at in at_levels if at.any()) if np.isfinite(v)]
     return float(np.mean(per_level)) if per_level else math.nan
 
 

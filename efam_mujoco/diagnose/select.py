@@ -347,14 +347,16 @@ def pays(new: Fit, old: Fit, noise: float, n: int, second: bool = False) -> tupl
 def search(engine: Engine, names: tuple[str, ...], max_effects: int = 2):
     """Single effects first, then one more on top of the best if it still pays.
 
-    The noise floor is the white-noise level of the baseline's residual (``high_frequency_noise``).
+    The noise floor is the white-noise level of the baseline's residual (``high_frequency_noise``)
+    with, in quadrature, the smooth force error the pressure sensor's noise leaves in every
+    prediction (``Context.input_noise_floor``).
     Returns (noise, baseline fit, kept fits in order, every single-effect fit, decision notes)."""
     n = engine.n
     base = engine.baseline()
     residual = np.empty(n)
     residual[engine.order] = engine.y + engine.ctx.base[engine.order]
     residual -= base.prediction
-    noise = high_frequency_noise(residual, engine.ctx.starts)
+    noise = math.hypot(high_frequency_noise(residual, engine.ctx.starts), engine.ctx.input_noise_floor())
     singles = {name: engine.candidate([get(name)], [None]) for name in names}
     ranked = sorted(singles.values(), key=lambda f: (f.heldout_rms, f.bic(noise, n)))
     notes = {f.names[0]: pays(f, base, noise, n)[1] for f in ranked}
