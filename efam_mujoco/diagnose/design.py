@@ -40,14 +40,18 @@ over blocks (``confidence``), so the unabsorbed squared difference is summed in 
 new recording will be cut into (``blocks_of``: its half-cycles, in pieces while the joined data
 have fewer than ``confidence.MIN_BLOCKS``) and ``decision_z`` gives the z of the truth's win
 (one block, however large its difference, gives z = 1: a bootstrap over blocks cannot trust it;
-the same difference over K blocks gives sqrt(K)), its spread widened by the noise's cross term and
-by the two hypotheses' block-by-block difference in the data already recorded. Candidates
+the same difference over K blocks gives sqrt(K)), its spread widened by the noise's cross term,
+and by the two hypotheses' block-by-block difference in the data already recorded. Candidates
 reaching ``Z_DECIDE`` all decide; among them the largest unabsorbed difference per sample
 against the noise is recommended (robust to what the two fitted models leave out, and no test is
 preferred for its length alone). When none reaches it, the best one followed by whichever of the
 next three adds most (``"a then b"``; ``experiment`` builds it) is recommended if that raises
-the expected z by 10 %. The recommendation states the predicted difference in newtons (raw, and
-what is left after the projection), its peak, the noise floor and the expected z.
+the expected z by 10 %; and a test still short of ``Z_DECIDE`` is repeated (``"a x3"``: the
+whole run three times over, at most ``MAX_REPEATS`` times and ``MAX_TEST_S`` in all) as few
+times as reach it, each repeat kept only while it raises the expected z by 10 % (it stops
+paying once the data already recorded dominate). The recommendation states the predicted
+difference in newtons (raw, and what is left after the projection), its peak, the noise floor,
+the expected z and the test's duration.
 """
 
 from __future__ import annotations
@@ -66,6 +70,11 @@ SAMPLE_HZ = 50.0
 Z_DECIDE = 3.0
 #: joins two candidate names into one experiment run one after the other
 THEN = " then "
+#: names a test run several times over (``"descending x3"``)
+TIMES = " x"
+#: the most times a test is repeated to reach ``Z_DECIDE``, and the longest the whole may last (s)
+MAX_REPEATS = 4
+MAX_TEST_S = 900.0
 
 
 @dataclass
@@ -322,81 +331,78 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
               absorb=None, sample_hz: float = SAMPLE_HZ, before=None,
               half_cycles_before: int = 0, rivals: dict | None = None) -> dict:  # fmt: skip
     """The candidate experiment (or, when no single one is expected to decide, the best two run
-    one after the other) that best separates the two models in ``models``. A candidate is scored
-    by the expected z of the decision it feeds (``decision_z``): the difference of the two
-    models' forces that no re-fit could take up (``unabsorbed``), summed in the blocks the
-    diagnosis will cut the new recording into (``blocks_of``), recorded at ``sample_hz``.
-    ``absorb(t, L, P)`` gives the columns the model's own parameter corrections move over a
-    candidate (None: a constant only); ``rivals`` maps a hypothesis to the columns its own
-    amplitudes move there (its shapes and time constants as fitted): when the data come from one
-    hypothesis, the other re-fits on the joined data, and only what neither re-fit takes up
-    decides. Each way round (``directions``) is scored and the weaker one counts.
-    ``before``: the two hypotheses' held-out squared-error difference per block of the data
-    already recorded; ``half_cycles_before``: their half-cycle count."""
+    one after the other, repeated as often as it takes) that best separates the two models in
+    ``models``. A candidate is scored by the expected z of the decision it feeds
+    (``decision_z``): the difference of the two models' forces that no re-fit could take up
+    (``unabsorbed``), summed in the blocks the diagnosis will cut the new recording into
+    (``blocks_of``), recorded at ``sample_hz``. ``absorb(t, L, P)`` gives the columns the
+    model's own parameter corrections move over a candidate (None: a constant only); ``rivals``
+    maps a hypothesis to the columns its own amplitudes move there (its shapes and time constants
+    as fitted): when the data come from one hypothesis, the other re-fits on the joined data, and
+    only what neither re-fit takes up decides. Each way round (``directions``) is scored and the
+    weaker one counts. ``before``: the two hypotheses' held-out squared-error difference per
+    block of the data already recorded; ``half_cycles_before``: their half-cycle count.
+
+    A test still short of ``Z_DECIDE`` is repeated (``repeated``: 2 to ``MAX_REPEATS`` times,
+    at most ``MAX_TEST_S`` in all) until its expected z reaches it: a repeat adds blocks that
+    the bootstrap weighs independently, so z grows about as the square root of the repeats
+    while the spread of the data already recorded stays what it was."""
     (na, a), (nb, b) = list(models.items())[:2]
     rivals = rivals or {}
     own_columns = [rivals.get(rival) for _, rival in directions(na, nb)]
-    scored, gaps = [], {}
-    for e in candidates(ctx, speed):
-        try:
-            d, t, L, P = _difference(a, b, e)  # the two models simulated once per candidate
-            rms, peak = _spread(d)
-            block = blocks_of(e, ctx.muscle, SAMPLE_HZ, half_cycles_before)
-            model_cols = None if absorb is None else absorb(t, L, P)  # shared by both ways round
-            lefts = [
-                _left_series(d, model_cols, None if own is None else own(t, L, P)) for own in own_columns
-            ]
-        except ValueError:
-            continue
+
+    def score(e: Experiment) -> dict:
+        """The expected outcome of running ``e`` (the weaker way round decides)."""
+        d, t, L, P = _difference(a, b, e)  # the two models simulated once per candidate
+        rms, peak = _spread(d)
+        block = blocks_of(e, ctx.muscle, SAMPLE_HZ, half_cycles_before)
+        model_cols = None if absorb is None else absorb(t, L, P)  # shared by both ways round
+        lefts = [_left_series(d, model_cols, None if own is None else own(t, L, P)) for own in own_columns]
         # block sums at the recorded rate (simulated at SAMPLE_HZ), each way round
         way_gaps = [np.bincount(block, weights=ls**2) * (sample_hz / SAMPLE_HZ) for ls in lefts]
         zs = [decision_z(g, noise_N, before) for g in way_gaps]
         weak = int(np.argmin(zs))
-        left_series = lefts[weak]
-        left = float(np.sqrt(np.mean(left_series**2)))
-        n = float(e.t[-1]) * sample_hz
-        chi2 = n * (left / max(noise_N, 1e-9)) ** 2
-        gaps[e.name] = way_gaps
-        scored.append({"name": e.name, "protocol": e.words, "predicted_difference_rms_N": rms,
-                       "predicted_difference_peak_N": peak, "ratio_to_noise": rms / max(noise_N, 1e-9),
-                       "unabsorbed_rms_N": left, "expected_chi2": chi2, "blocks": int(len(way_gaps[weak])),
-                       "expected_z": zs[weak],
-                       "duration_s": float(e.t[-1])})  # fmt: skip
+        left = float(np.sqrt(np.mean(lefts[weak] ** 2)))
+        return {"name": e.name, "protocol": e.words, "predicted_difference_rms_N": rms,
+                "predicted_difference_peak_N": peak, "ratio_to_noise": rms / max(noise_N, 1e-9),
+                "unabsorbed_rms_N": left, "expected_chi2": float(e.t[-1]) * sample_hz * (left / max(noise_N, 1e-9)) ** 2,
+                "blocks": int(len(way_gaps[weak])), "expected_z": zs[weak], "duration_s": float(e.t[-1]),
+                "repeats": 1}  # fmt: skip
+
+    tests, scored = {}, []
+    for e in candidates(ctx, speed):
+        try:
+            scored.append(score(e))
+        except ValueError:
+            continue
+        tests[e.name] = e
     # past Z_DECIDE the bootstrap decides whatever the test (Phi(3) = 0.9987): among those that
     # decide, the largest difference per sample against the noise (robust to what the two fitted
     # models leave out, and a long test is not preferred for its length alone)
     scored.sort(key=lambda s: (-min(s["expected_z"], Z_DECIDE), -s["unabsorbed_rms_N"]))
     best = scored[0] if scored else None
-    # one test not expected to decide: the best two in sequence (their blocks add up)
+    chosen = tests[best["name"]] if best else None
+    # one test not expected to decide: the best followed by whichever of the next three adds most
     if best and best["expected_z"] < Z_DECIDE and len(scored) >= 2:
-        pairs = []
-        for s in scored[1:4]:
-            z = min(
-                decision_z(np.r_[g1, g2], noise_N, before)
-                for g1, g2 in zip(gaps[best["name"]], gaps[s["name"]])
-            )
-            pairs.append((z, s))
-        z, second = max(pairs, key=lambda zs: zs[0])
-        if z > best["expected_z"] * 1.1:
-            w = best["duration_s"] + second["duration_s"]
-
-            def joined_rms(key: str, a=best, b=second) -> float:
-                """An RMS over the two tests run one after the other (time-weighted)."""
-                return math.sqrt((a[key] ** 2 * a["duration_s"] + b[key] ** 2 * b["duration_s"]) / w)
-
-            best = {
-                "name": f"{best['name']}{THEN}{second['name']}",
-                "protocol": f"{best['protocol']}; then {second['protocol']}",
-                "predicted_difference_rms_N": joined_rms("predicted_difference_rms_N"),
-                "predicted_difference_peak_N": max(best["predicted_difference_peak_N"],
-                                                   second["predicted_difference_peak_N"]),
-                "unabsorbed_rms_N": joined_rms("unabsorbed_rms_N"),
-                "expected_chi2": best["expected_chi2"] + second["expected_chi2"],
-                "blocks": best["blocks"] + second["blocks"], "expected_z": z, "duration_s": w,
-            }  # fmt: skip
-            best["ratio_to_noise"] = best["predicted_difference_rms_N"] / max(noise_N, 1e-9)
+        pairs = [joined(chosen, tests[s["name"]]) for s in scored[1:4]]
+        pair_scores = [score(e) for e in pairs]
+        k = int(np.argmax([s["expected_z"] for s in pair_scores]))
+        if _raises(pair_scores[k]["expected_z"], best["expected_z"]):
+            best, chosen = pair_scores[k], pairs[k]
+    # still short: the same test again, as few times as reach Z_DECIDE (not when even
+    # MAX_REPEATS runs, z growing as sqrt(repeats), could not reach z 1: a long test deciding nothing)
+    if best and 1.0 / math.sqrt(MAX_REPEATS) <= best["expected_z"] < Z_DECIDE:
+        for times in range(2, MAX_REPEATS + 1):
+            if times * best["duration_s"] / best["repeats"] > MAX_TEST_S:
+                break
+            again = score(repeated(chosen, times))
+            if not _raises(again["expected_z"], best["expected_z"]):
+                break  # the data already recorded dominate (their spread, their margin): repeats do not pay
+            best = {**again, "repeats": times}
+            if again["expected_z"] >= Z_DECIDE:
+                break
     words = ""
-    if best and best["ratio_to_noise"] < 1.0:
+    if best and best["ratio_to_noise"] < 1.0 and best["repeats"] == 1:
         words = (
             f"No candidate experiment separates {na} and {nb}: the two fitted models predict forces differing "
             f"by at most {best['predicted_difference_rms_N']:.2f} N RMS ({best['name']}) against a noise floor of "
@@ -408,7 +414,8 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
             f"models predict forces differing by {best['predicted_difference_rms_N']:.2f} N RMS (peak "
             f"{best['predicted_difference_peak_N']:.2f} N; {best['unabsorbed_rms_N']:.2f} N RMS that no re-fit "
             f"of the model's parameters or of the rival's amplitudes could take up) against a noise floor of "
-            f"{noise_N:.2f} N; expected decision z {best['expected_z']:.1f} over {best['blocks']} blocks."
+            f"{noise_N:.2f} N; expected decision z {best['expected_z']:.1f} over {best['blocks']} blocks "
+            f"({best['duration_s']:.0f} s)."
         )
         if best["expected_z"] < 1.0:
             # a bootstrap win fraction under Phi(1) = 0.84: the test is the best on offer, not a decision
@@ -419,14 +426,36 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     return {"contenders": [na, nb], "recommended": best, "candidates": scored, "words": words}
 
 
+def _raises(z_new: float, z_old: float) -> bool:
+    """A longer test is worth it: it raises the expected z by 10 % and above 0."""
+    return z_new > 0.0 and z_new > z_old + 0.1 * abs(z_old)
+
+
+def joined(first: Experiment, second: Experiment, name: str | None = None) -> Experiment:
+    """``first`` then ``second`` (its set points shifted in time after the first's)."""
+    t = np.r_[first.t, first.t[-1] + 1e-3 + second.t]
+    return Experiment(name or f"{first.name}{THEN}{second.name}", f"{first.words}; then {second.words}", t,
+                      np.r_[first.L, second.L], np.r_[first.P, second.P])  # fmt: skip
+
+
+def repeated(test: Experiment, times: int) -> Experiment:
+    """``test`` run ``times`` times one after the other, named ``"<name> x<times>"``."""
+    out = test
+    for _ in range(times - 1):
+        out = joined(out, test)
+    return Experiment(f"{test.name}{TIMES}{times}", f"{test.words}; the whole run {times} times over", out.t,
+                      out.L, out.P)  # fmt: skip
+
+
 def experiment(name: str, ctx: Context, speed: float) -> Experiment:
     """The candidate experiment called ``name`` for these data; ``"a then b"``: the two run one
-    after the other (b's set points shifted in time after a's)."""
+    after the other; ``"<test> x3"``: the test run three times over."""
+    head, times, count = name.rpartition(TIMES)
+    if times and count.isdigit():
+        return repeated(experiment(head, ctx, speed), int(count))
     if THEN in name:
         first, second = (experiment(part, ctx, speed) for part in name.split(THEN, 1))
-        t = np.r_[first.t, first.t[-1] + 1e-3 + second.t]
-        return Experiment(name, f"{first.words}; then {second.words}", t, np.r_[first.L, second.L],
-                          np.r_[first.P, second.P])  # fmt: skip
+        return joined(first, second, name)
     for e in candidates(ctx, speed):
         if e.name == name:
             return e

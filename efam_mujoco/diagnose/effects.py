@@ -245,25 +245,32 @@ class Context:
 
         def make():
             out = np.zeros(self.n)
-            for b, e in segments(self.starts, self.n):
+            for b, e, sigma, width in self._eiv_recordings():
                 u = self.P[b:e]
-                width = self._eiv_width(b, e)
                 if e - b >= width:
                     half = width // 2
                     padded = np.r_[u[:half][::-1], u, u[-half:][::-1]]
                     dev = u - np.convolve(padded, np.ones(width) / width, mode="valid")
                     # white noise of level s deviates from the window mean by s sqrt(1 - 1/w);
                     # far beyond that the deviation is a real step or transient, not noise
-                    cut = EIV_OUTLIER * high_frequency_noise(u) * math.sqrt(1.0 - 1.0 / width)
+                    cut = EIV_OUTLIER * sigma * math.sqrt(1.0 - 1.0 / width)
                     out[b:e] = np.where(np.abs(dev) > cut, 0.0, dev) if cut > 0 else dev
             return out * self.dF_dP()
 
         return self.cached("eiv", make)
 
-    def _eiv_width(self, b: int, e: int) -> int:
-        """Samples in the errors-in-variables window of the recording ``b:e`` (see ``input_noise``)."""
-        dt = float(np.median(np.diff(self.t[b:e]))) if e - b >= 2 else 0.0
-        return 5 if 4 * dt <= EIV_SPAN_S else 3
+    def _eiv_recordings(self) -> list[tuple[int, int, float, int]]:
+        """Per recording: its sample range ``b, e``, its pressure's white-noise level (Pa) and the
+        samples in its errors-in-variables window (see ``input_noise``), computed once."""
+
+        def make():
+            out = []
+            for b, e in segments(self.starts, self.n):
+                dt = float(np.median(np.diff(self.t[b:e]))) if e - b >= 2 else 0.0
+                out.append((b, e, high_frequency_noise(self.P[b:e]), 5 if 4 * dt <= EIV_SPAN_S else 3))
+            return out
+
+        return self.cached("eiv_recordings", make)
 
     def input_noise_floor(self) -> float:
         """RMS force error (N) the pressure sensor's noise leaves in any prediction after the
@@ -274,9 +281,8 @@ class Context:
         48 Hz strokes: 0.15 N beside a 0.59 N force noise)."""
         dFdP = self.dF_dP()
         total = 0.0
-        for b, e in segments(self.starts, self.n):
-            sigma = high_frequency_noise(self.P[b:e])
-            total += float(np.sum(dFdP[b:e] ** 2)) * sigma**2 / self._eiv_width(b, e)
+        for b, e, sigma, width in self._eiv_recordings():
+            total += float(np.sum(dFdP[b:e] ** 2)) * sigma**2 / width
         return math.sqrt(total / max(self.n, 1))
 
     def bladder_push(self):
