@@ -505,14 +505,20 @@ def test_a_transport_delay_is_fitted_as_one(cases):
     assert model.actuator_delay[0] == pytest.approx(fitted["delay_s"], rel=1e-12)
 
 
+def _friction_and_viscoelasticity(muscle) -> dict:
+    """Two fitted hypotheses that differ in holds and rate: a pressure-scaled friction and a
+    one-branch viscoelasticity, each on ``muscle``."""
+    friction = EffectModel(muscle, [("friction", {"f0_N": 3.0, "f1_N_per_MPa": 10.0, "g0_N": 0.0,
+                                                   "g1_N_per_MPa": 0.0, "slip_strain": 0.01,
+                                                   "slip_kPa": 10.0})])  # fmt: skip
+    visco = EffectModel(muscle, [("viscoelasticity", {"k0_N": 60.0, "k1_N_per_MPa": 200.0, "tau_s": 2.0})])
+    return {"friction": friction, "viscoelasticity": visco}
+
+
 def test_next_experiment_separates_friction_from_viscoelasticity(cases):
     # two hypotheses that differ in holds and rate: the design proposes a test where they differ
     _, _, d = cases["visco_sine"]
-    m = d.muscle_after
-    friction = EffectModel(m, [("friction", {"f0_N": 3.0, "f1_N_per_MPa": 10.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
-                                              "slip_strain": 0.01, "slip_kPa": 10.0})])  # fmt: skip
-    visco = EffectModel(m, [("viscoelasticity", {"k0_N": 60.0, "k1_N_per_MPa": 200.0, "tau_s": 2.0})])
-    plan = recommend({"friction": friction, "viscoelasticity": visco}, d.ctx, 5e-3, d.noise_N)
+    plan = recommend(_friction_and_viscoelasticity(d.muscle_after), d.ctx, 5e-3, d.noise_N)
     best = plan["recommended"]
     assert best["name"] in ("long_hold", "fast")
     assert best["predicted_difference_rms_N"] > 3 * d.noise_N
@@ -528,11 +534,7 @@ def test_a_test_short_of_deciding_is_repeated_until_it_decides(cases):
     from efam_mujoco.diagnose.design import MAX_REPEATS, MAX_TEST_S, TIMES, Z_DECIDE, experiment
 
     _, _, d = cases["visco_sine"]
-    m = d.muscle_after
-    friction = EffectModel(m, [("friction", {"f0_N": 3.0, "f1_N_per_MPa": 10.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
-                                              "slip_strain": 0.01, "slip_kPa": 10.0})])  # fmt: skip
-    visco = EffectModel(m, [("viscoelasticity", {"k0_N": 60.0, "k1_N_per_MPa": 200.0, "tau_s": 2.0})])
-    models = {"friction": friction, "viscoelasticity": visco}
+    models = _friction_and_viscoelasticity(d.muscle_after)
     noise = d.noise_N
     while True:  # raise the noise until the best single test reaches z ~ 1-1.5
         plan = recommend(models, d.ctx, 5e-3, noise)
@@ -547,7 +549,7 @@ def test_a_test_short_of_deciding_is_repeated_until_it_decides(cases):
     once = best["name"].rpartition(TIMES)[0]
     # the repeated test is the named one run k times, and its z grows as sqrt(k)
     k = best["repeats"]
-    assert experiment(best["name"], d.ctx, 5e-3).t[-1] == pytest.approx(k * best["duration_s"] / k, rel=1e-6)
+    assert experiment(best["name"], d.ctx, 5e-3).t[-1] == pytest.approx(best["duration_s"], rel=1e-6)
     assert best["duration_s"] == pytest.approx(k * experiment(once, d.ctx, 5e-3).t[-1], rel=0.01)
     if once in single:
         assert best["expected_z"] == pytest.approx(single[once]["expected_z"] * np.sqrt(k), rel=0.2)
