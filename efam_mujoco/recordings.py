@@ -33,7 +33,9 @@ Bad rows (a wrong number of fields, an empty or non-numeric value, NaN or infini
 to or before the previous row's) are an error naming the file, the line and the column by default
 (``on_bad_rows="error"``). With ``on_bad_rows="drop"`` they are dropped instead and listed in
 ``recording.meta["dropped_rows"]`` (line, column, reason); :func:`drop_report` words that list for
-the user. Input files are only ever read.
+the user. Input files are only ever read. The separator is the comma and the decimal mark the
+point: a semicolon- or tab-separated file and a decimal comma are refused with a message that
+says so (a decimal comma is not guessed at: it could be a thousands separator).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import csv
 import dataclasses
 import math
 import os
+import re
 import sys
 from array import array
 from dataclasses import dataclass, field
@@ -121,6 +124,14 @@ def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, s
                 f"'{name}_{'kPa' if name == 'pressure' else next(iter(_unit_table(name)))}'"
             )
         if base not in _BASE_ROLE:
+            for sep, word in ((";", "semicolon"), ("\t", "tab")):
+                if len(header) == 1 and sep in name:
+                    # one header cell holding every header: another separator than the comma
+                    raise RecordingError(
+                        f"{label}: line {line}, unknown column '{name}': the header is one field "
+                        f"holding '{word}'-separated names; save the file comma-separated, with "
+                        f"decimal points (accepted: {_ACCEPTED})"
+                    )
             raise RecordingError(f"{label}: line {line}, unknown column '{name}' (accepted: {_ACCEPTED})")
         role = _BASE_ROLE[base]
         quantity, sign = _ROLES[role][base]
@@ -279,6 +290,9 @@ def read_csv(
     return Recording(time_s, length, pressure, force, meta)
 
 
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
+
+
 def _skip(row: list[str]) -> bool:
     return not row or all(not cell.strip() for cell in row) or row[0].lstrip().startswith("#")
 
@@ -297,7 +311,9 @@ def _parse_row(row, header, columns, order):
             value = float(text)
         except ValueError:
             shown = text if len(text) <= 40 else text[:40] + "..."
-            return None, (name, f"not a number: {shown!r}")
+            # a decimal comma is refused, not guessed (it could be a thousands separator)
+            hint = " (a decimal comma? write decimal points)" if _DECIMAL_COMMA.match(text) else ""
+            return None, (name, f"not a number: {shown!r}{hint}")
         if not math.isfinite(value):
             return None, (name, f"not a finite number: {text!r}")
         value *= scale

@@ -95,7 +95,11 @@ PARSE_CASES = [
     ("too few fields", with_row(5, "1,0.17,100"), r"line 6.*3 fields"),
     ("empty value", row(6, length=""), r"line 6, column 'length_m': empty"),
     ("not a number", row(6, pressure="abc"), r"line 6, column 'pressure_kPa': not a number"),
-    ("comma decimal", row(6, length='"0,17"'), r"line 6, column 'length_m': not a number"),
+    (
+        "comma decimal",
+        row(6, length='"0,17"'),
+        r"line 6, column 'length_m': not a number: '0,17' \(a decimal comma",
+    ),
     ("nan", row(6, pressure="nan"), r"line 6.*not a finite"),
     ("inf", row(6, force="inf"), r"line 6.*not a finite"),
     ("-inf", row(6, length="-inf"), r"line 6.*not a finite"),
@@ -123,7 +127,13 @@ PARSE_CASES = [
     ("UTF-16 file", good_text().encode("utf-16"), r"line 1.*not UTF-8"),
     ("binary garbage", bytes(range(256)) * 4, r"not UTF-8|NUL|not a CSV|unknown column"),
     ("unclosed quote", row(6, length='"0.17'), r"line \d+"),
-    ("semicolon separated", good_text().replace(",", ";"), r"unknown column"),
+    ("semicolon separated", good_text().replace(",", ";"), r"line 1, unknown column.*'semicolon'-separated"),
+    ("tab separated", good_text().replace(",", "\t"), r"line 1, unknown column.*'tab'-separated"),
+    (
+        "semicolons and decimal commas",
+        good_text().replace(",", ";").replace(".", ","),
+        r"line 1.*'semicolon'-separated.*decimal points",
+    ),
     (
         "displacement without unit",
         good_text().replace("length_m", "displacement", 1),
