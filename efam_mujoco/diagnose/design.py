@@ -393,7 +393,7 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     # MAX_REPEATS runs, z growing as sqrt(repeats), could not reach z 1: a long test deciding nothing)
     if best and 1.0 / math.sqrt(MAX_REPEATS) <= best["expected_z"] < Z_DECIDE:
         for times in range(2, MAX_REPEATS + 1):
-            if times * best["duration_s"] / best["repeats"] > MAX_TEST_S:
+            if times * float(chosen.t[-1]) > MAX_TEST_S:
                 break
             again = score(repeated(chosen, times))
             if not _raises(again["expected_z"], best["expected_z"]):

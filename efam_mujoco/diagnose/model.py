@@ -44,7 +44,7 @@ from .effects import high_frequency_noise
 GEOMETRY = ("theta_rest_deg", "rest_diameter_m", "bladder_volume_m3", "deadband_Pa")
 FIT_SAMPLES = 3000
 #: another law beside its zeros replaces the best plain law's choice only when its BIC is this
-#: much lower (the margin ``select.MIN_DELTA_BIC`` an effect must clear)
+#: much lower; ``select`` takes it from here as the margin an effect must clear
 MIN_DELTA_BIC = 100.0
 #: a load-cell zero's bound either side of where the fit starts it (N; fitted in newtons)
 ZERO_SPAN_N = 100.0

@@ -35,10 +35,9 @@ from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import lsq_linear, minimize_scalar
 
 from .effects import Context, Effect, get, high_frequency_noise
-from .model import Linearised
+from .model import MIN_DELTA_BIC, Linearised  # one BIC margin, shared with ``model.refit``
 from .segment import Labels
 
-MIN_DELTA_BIC = 100.0
 MIN_GAIN = 0.03  # held-out RMS must fall by 3 %
 MIN_EXCESS_CUT = 0.3  # and lose 30 % of its excess over the noise floor
 MIN_EXCESS_RATIO = 1.08  # the baseline held-out RMS must stand this far above the noise floor
