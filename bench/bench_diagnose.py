@@ -111,6 +111,14 @@ def correct(answer: str, kind: str, truth: list[str], shows: bool = True) -> boo
     return answer in truth
 
 
+def _verdict_inputs(d) -> dict:
+    """What ``confidence.verdict`` weighed for diagnosis ``d`` (``rescore`` and the calibration re-use it)."""
+    v = d.verdict
+    return {"raw": v.raw, "excess_cut": v.excess_cut, "dd_gain": v.dd_gain, "n_blocks": v.n_blocks,
+            "excess": v.excess, "dd_gain_none": v.dd_gain_none, "evidence": d.evidence,
+            "pair": [e["name"] for e in d.effects[:2]] if len(d.effects) >= 2 else []}  # fmt: skip
+
+
 def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
     seed, family, kind = spec
     case = V.draw_case(seed, family, kind)
@@ -158,6 +166,8 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
             "probability": d2.verdict.probability, "confident": d2.verdict.confident,
             "ambiguous_after": d2.verdict.ambiguous,
             "correct": correct(d2.verdict.answer, kind, case.names, shows),
+            # the joined verdict's inputs, so that a calibration can weigh the joined diagnoses too
+            **_verdict_inputs(d2),
         }  # fmt: skip
         row["next"]["resolved"] = bool(row["next"]["confident"] and row["next"]["correct"])
     return row

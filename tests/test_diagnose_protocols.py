@@ -638,10 +638,7 @@ def test_a_single_ramp_is_held_out_in_interleaved_pieces_not_extrapolated():
     t = np.arange(0.0, 60.0, 0.02)
     P = np.minimum(10e3 * t, 400e3)
     labels = label(t, np.full_like(t, 0.1), P, [0])
-    assert "contiguous time blocks" in labels.folds_rule and labels.n_folds == MAX_FOLDS
-    runs = np.flatnonzero(np.diff(labels.fold)) + 1
-    edges = np.r_[0, runs, len(t)]
-    assert len(edges) - 1 >= PIECES_PER_FOLD * MAX_FOLDS
+    assert "contiguous blocks" in labels.folds_rule and labels.n_folds == MAX_FOLDS
     ramp = P < 399e3
     for k in range(labels.n_folds):
         held = labels.fold == k
@@ -666,6 +663,65 @@ def test_a_clean_single_ramp_and_hold_raises_no_alarm(seed):
     d = diagnose([recording], nominal, next_experiment=False)
     assert not (d.verdict.confident and d.verdict.answer != "none"), (d.verdict.answer, d.verdict.probability)
     assert d.heldout_rms_before_N < 1.5 * d.noise_N
+
+
+def test_a_stroke_before_a_long_hold_is_cut_as_finely_as_the_hold():
+    # a creep test: one 10 s stroke at 300 kPa, then 115 s held at the far end. Cut by time, the
+    # stroke fell in three of twenty pieces and its start was held out with no strain near it
+    # left to train on; cut by progress (time plus ground covered) every fold holds a few short
+    # pieces of the stroke and its training set covers the whole stroke within 10 % of the range
+    from efam_mujoco.diagnose.segment import MAX_FOLDS
+
+    t = np.arange(0.0, 130.0, 0.02)
+    x = np.interp(t, [0, 5, 15, 130], [0.0, 0.0, 0.25, 0.25])
+    labels = label(t, x, np.full_like(t, 300e3), [0])
+    assert labels.n_folds == MAX_FOLDS
+    stroke = (t > 5) & (t < 15)
+    for k in range(labels.n_folds):
+        held = labels.fold == k
+        assert (held & stroke).any(), f"fold {k} holds none of the stroke"
+        gap = np.min(np.abs(x[stroke][:, None] - x[stroke & ~held][None, :]), axis=1).max()
+        assert gap <= 0.025, f"fold {k}: a held-out strain {gap:.3f} from any trained one"
+
+
+@pytest.mark.parametrize("seed", [99981, 99982])
+def test_clean_strokes_at_a_single_pressure_raise_no_alarm(seed):
+    # a creep test (one stroke, then a long hold) and length steps at one pressure: no effect
+    # concealed. At a single pressure a load-cell zero is one of the stress law's own force
+    # changes; the re-fit took a 76 N zero beside the exponent law, set it aside, and
+    # `force_offset` was named at p 0.95 (and, with the stroke held out by time, `softening` at 0.91)
+    case = V.draw_case(seed, "isobaric", "clean")
+    nominal = load_muscle(case.base_name)
+    V.make(case)  # draws the case's noise level
+    rest = nominal.rest_length_m
+    t = np.arange(0.0, 130.0, 0.02)
+    creep = np.interp(t, [0, 5, 15, 130], [rest, rest, 1.25 * rest, 1.25 * rest])
+    steps = rest * (1 + 0.25 / 6 * np.minimum(np.floor(t / 10), 12 - np.minimum(np.floor(t / 10), 12)))
+    for L in (creep, steps):
+        recording = V.run_plan(case, t, L, np.full_like(t, 300e3), 50.0, seed)
+        d = diagnose([recording], nominal, next_experiment=False)
+        assert not (d.verdict.confident and d.verdict.answer != "none"), (
+            d.verdict.answer,
+            d.verdict.probability,
+        )
+        assert d.heldout_rms_before_N < 1.5 * d.noise_N
+
+
+def test_a_load_cell_zero_at_a_single_pressure_is_not_identifiable():
+    # the zero's standard error, fitted beside the law and the geometry: infinite or far above
+    # the noise where every stroke is at one pressure, tiny where strokes at zero pressure (the
+    # muscle slack or passive) pin it apart from the stress law's own force
+    from efam_mujoco.diagnose.model import zero_standard_errors
+
+    nominal = load_muscle("FAM1")
+    rest = nominal.rest_length_m
+    L = rest * (1 + 0.2 * np.abs(np.sin(np.linspace(0, 6 * np.pi, 1200))))
+    rng = np.random.default_rng(1)
+    for P, expect_pinned in ((np.full_like(L, 300e3), False), (np.repeat([0.0, 150e3, 300e3], 400), True)):
+        F = nominal.push(P, L) + 5.0 + rng.normal(0, 0.5, len(L))
+        rec = np.zeros(len(L), dtype=int)
+        se = zero_standard_errors(nominal, P, L, F, np.array([5.0]), rec, nominal)
+        assert (se[0] < 0.5) == expect_pinned, se
 
 
 def test_the_only_low_pressure_half_cycles_of_a_test_land_in_different_folds():

@@ -140,7 +140,7 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
         fitted, _ = _refine(first, law, Ps, Ls, Fs, box)
         rss = float(np.sum((fitted.push(Ps, Ls) - Fs) ** 2))
         results[law] = (_bic(rss, len(Fs), len(names(law))), fitted)
-        choices[law] = _beside_zeros(fitted, law, Ps, Ls, Fs, box, rec, noise)
+        choices[law] = _beside_zeros(fitted, law, Ps, Ls, Fs, box, rec, noise, muscle)
     if not results:
         raise ValueError("no stress law could be fitted to the recordings")
     best = min(results, key=lambda law: results[law][0])
@@ -171,20 +171,46 @@ class _Choice:
     zeros: bool
 
 
-def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float) -> _Choice:
+def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float, nominal: Muscle) -> _Choice:
     """The law refined beside one load-cell zero per recording (``rec``: each sample's
-    recording) when the zeros lower the BIC and one of them stands above the force noise
-    ``noise_N``, else refined alone from the same start. A zero within the noise costs the law
-    nothing visible, and set aside it is what the effects would have to give back: a friction
-    whose mean is not zero left half a newton of it out of the final model."""
+    recording) when the zeros lower the BIC, one of them stands above the force noise
+    ``noise_N`` and the data pin every zero to within that noise (``zero_standard_errors``),
+    else refined alone from the same start. A zero within the noise costs the law nothing
+    visible, and set aside it is what the effects would have to give back: a friction whose
+    mean is not zero left half a newton of it out of the final model. A zero the data cannot
+    tell from the muscle's own force (strokes at a single pressure: there a constant is one of
+    the law's own force changes) is whatever the law leaves, 76 N on clean length steps, and
+    set aside it would be named ``force_offset``."""
     alone, _ = _refine(fitted, law, P, L, F, box)
     beside, zeros = _refine(fitted, law, P, L, F, box, rec)
     k = len(names(law))
     bic_alone = _bic(float(np.sum((alone.push(P, L) - F) ** 2)), len(F), k)
     bic_beside = _bic(float(np.sum((beside.push(P, L) + zeros[rec] - F) ** 2)), len(F), k + len(zeros))
     if bic_beside < bic_alone and np.max(np.abs(zeros)) > noise_N:
-        return _Choice(bic_beside, beside, True)
+        if np.all(zero_standard_errors(beside, P, L, F, zeros, rec, nominal) < noise_N):
+            return _Choice(bic_beside, beside, True)
     return _Choice(bic_alone, alone, False)
+
+
+def zero_standard_errors(muscle: Muscle, P, L, F, zeros, rec, nominal: Muscle) -> np.ndarray:
+    """Standard error (N) of each recording's load-cell zero fitted together with the law and
+    the geometry around ``muscle``: the residual's RMS over the norm of the zero's column
+    (``rec``: each sample's recording) left after its least-squares projection on the other
+    zeros' and the parameters' force changes (``linearise``). Infinite where nothing is left:
+    the data cannot tell that zero from a change of the muscle's own force."""
+    J = linearise(muscle, P, L, nominal).J
+    Z = (np.asarray(rec)[:, None] == np.arange(len(zeros))[None, :]).astype(float)
+    sigma = float(np.sqrt(np.mean((muscle.push(P, L) + np.asarray(zeros)[rec] - F) ** 2)))
+    out = np.full(len(zeros), np.inf)
+    for k in range(len(zeros)):
+        others = np.column_stack([J, np.delete(Z, k, axis=1)])
+        others = others / (np.sqrt(np.mean(others**2, axis=0)) + 1e-300)
+        coef, *_ = np.linalg.lstsq(others, Z[:, k], rcond=None)
+        left = float(np.linalg.norm(Z[:, k] - others @ coef))
+        # relative to the column's own norm: below 1e-6 of it the column lies in the others' span
+        if left > 1e-6 * float(np.linalg.norm(Z[:, k])):
+            out[k] = sigma / left
+    return out
 
 
 def _refine(first: Muscle, law: str, P, L, F, box, rec=None) -> tuple[Muscle, np.ndarray]:
