@@ -9,7 +9,9 @@ would remove is parameter error, not missing physics. So the diagnosis first re-
 3. the law with the smallest BIC is the best plain law;
 4. each law is refined once more with one load-cell zero per recording as a nuisance, and once
    without (the same start and budget); the zeros are kept when they lower that law's BIC (each
-   counted as a parameter) and one stands above the force noise. Fitted without them a law bends
+   counted as a parameter), one stands above the force noise, and the data pin each within the
+   noise (``zero_standard_errors``: strokes at a single pressure cannot tell a zero from the
+   law's own force). Fitted without them a law bends
    to take up an offset where the muscle carries load, which a ``force_offset`` term can no
    longer show. The best plain law's choice is the baseline, unless another law beside its
    zeros lowers the BIC by ``MIN_DELTA_BIC`` (a 7 N zero on two-length staircases: the
