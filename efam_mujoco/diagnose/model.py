@@ -9,9 +9,9 @@ would remove is parameter error, not missing physics. So the diagnosis first re-
 3. the law with the smallest BIC is the best plain law;
 4. each law is refined once more with one load-cell zero per recording as a nuisance, and once
    without (the same start and budget); the zeros are kept when they lower that law's BIC (each
-   counted as a parameter), one stands above the force noise, and the data pin each within the
-   noise (``zero_standard_errors``: strokes at a single pressure cannot tell a zero from the
-   law's own force). Fitted without them a law bends
+   counted as a parameter), one stands above the force noise, and the data pin each such zero
+   ``ZERO_Z`` standard errors from zero (``zero_standard_errors``: strokes at a single pressure
+   cannot tell a zero from the law's own force). Fitted without them a law bends
    to take up an offset where the muscle carries load, which a ``force_offset`` term can no
    longer show. The best plain law's choice is the baseline, unless another law beside its
    zeros lowers the BIC by ``MIN_DELTA_BIC`` (a 7 N zero on two-length staircases: the
@@ -50,6 +50,10 @@ FIT_SAMPLES = 3000
 MIN_DELTA_BIC = 100.0
 #: a load-cell zero's bound either side of where the fit starts it (N; fitted in newtons)
 ZERO_SPAN_N = 100.0
+#: a zero above the force noise is kept only this many standard errors from zero: strokes at a
+#: single pressure leave a constant inside the law's own force changes (a 76 N zero, 0.2 standard
+#: errors; the benchmark's load-cell zeros stand 13-500 standard errors out)
+ZERO_Z = 3.0
 
 
 def names(law: str) -> tuple[str, ...]:
@@ -176,8 +180,8 @@ class _Choice:
 def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float, nominal: Muscle) -> _Choice:
     """The law refined beside one load-cell zero per recording (``rec``: each sample's
     recording) when the zeros lower the BIC, one of them stands above the force noise
-    ``noise_N`` and the data pin every zero to within that noise (``zero_standard_errors``),
-    else refined alone from the same start. A zero within the noise costs the law nothing
+    ``noise_N`` and the data pin every such zero (at least ``ZERO_Z`` standard errors from
+    zero, ``zero_standard_errors``), else refined alone from the same start. A zero within the noise costs the law nothing
     visible, and set aside it is what the effects would have to give back: a friction whose
     mean is not zero left half a newton of it out of the final model. A zero the data cannot
     tell from the muscle's own force (strokes at a single pressure: there a constant is one of
@@ -189,7 +193,10 @@ def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float, n
     bic_alone = _bic(float(np.sum((alone.push(P, L) - F) ** 2)), len(F), k)
     bic_beside = _bic(float(np.sum((beside.push(P, L) + zeros[rec] - F) ** 2)), len(F), k + len(zeros))
     if bic_beside < bic_alone and np.max(np.abs(zeros)) > noise_N:
-        if np.all(zero_standard_errors(beside, P, L, F, zeros, rec, nominal) < noise_N):
+        # every zero that stands above the noise must be pinned: ZERO_Z standard errors from zero
+        se = zero_standard_errors(beside, P, L, F, zeros, rec, nominal)
+        material = np.abs(zeros) > noise_N
+        if np.all(np.abs(zeros)[material] >= ZERO_Z * se[material]):
             return _Choice(bic_beside, beside, True)
     return _Choice(bic_alone, alone, False)
 
