@@ -101,9 +101,9 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.689  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    a: float = -2.685  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
     b: float = 5.813
-    c: float = -7.749
+    c: float = -7.525
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
     an: float = -0.640  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
     bn: float = -9.602
