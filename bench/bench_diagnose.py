@@ -137,10 +137,7 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         "sample_hz": case.sample_hz, "units": case.units, "truth_muscle": case.base_name,
         "truth_effect_rms_N": case.effect_rms_N, "force_noise_N": case.noise_N,
         "answer": v.answer, "probability": v.probability, "confident": v.confident, "ambiguous": v.ambiguous,
-        "contenders": v.contenders, "probabilities": v.probabilities, "raw": v.raw,
-        "excess_cut": v.excess_cut, "dd_gain": v.dd_gain, "n_blocks": v.n_blocks,
-        "excess": v.excess, "dd_gain_none": v.dd_gain_none, "both": v.both,
-        "pair": [e["name"] for e in d.effects[:2]] if len(d.effects) >= 2 else [],
+        "contenders": v.contenders, "probabilities": v.probabilities, **_verdict_inputs(d), "both": v.both,
         "named": d.names, "correct": correct(v.answer, kind, case.names, shows), "shows": shows,
         "truth_left_after_refit_N": left, "truth_left_after_baseline_N": left_base,
         "shows_after_baseline": bool(left_base >= 0.25 * case.noise_N) if case.effects else True,
@@ -149,7 +146,7 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         "dd_terms": d.correction.terms, "structured_left": d.unexplained.get("structured", False),
         "structure": d.structure, "samples": d.n_samples, "seconds": seconds,
         "tentative": v.tentative, "separation_z": v.separation_z, "outside_supported": v.outside_supported,
-        "dd_raw_gain": d.correction.raw_gain, "evidence": d.evidence,
+        "dd_raw_gain": d.correction.raw_gain,
         "next": None,
     }  # fmt: skip
     # the next experiment is tried on every ambiguous case, whatever its family: the truth model

@@ -181,9 +181,9 @@ def _beside_zeros(fitted: Muscle, law: str, P, L, F, box, rec, noise_N: float, n
     """The law refined beside one load-cell zero per recording (``rec``: each sample's
     recording) when the zeros lower the BIC, one of them stands above the force noise
     ``noise_N`` and the data pin every such zero (at least ``ZERO_Z`` standard errors from
-    zero, ``zero_standard_errors``), else refined alone from the same start. A zero within the noise costs the law nothing
-    visible, and set aside it is what the effects would have to give back: a friction whose
-    mean is not zero left half a newton of it out of the final model. A zero the data cannot
+    zero, ``zero_standard_errors``), else refined alone from the same start. A zero within the
+    noise costs the law nothing visible, and set aside it is what the effects would have to give
+    back: a friction whose mean is not zero left half a newton of it out of the final model. A zero the data cannot
     tell from the muscle's own force (strokes at a single pressure: there a constant is one of
     the law's own force changes) is whatever the law leaves, 76 N on clean length steps, and
     set aside it would be named ``force_offset``."""

@@ -378,20 +378,25 @@ def _folds(half_info, n, P, x) -> tuple[np.ndarray, int, str]:
             cut += [(int(a), int(b), d) for a, b in zip(edges[:-1], edges[1:]) if b > a]
         units = cut
     k = max(2, min(MAX_FOLDS, len(units)))
-    # a unit's kind: its driver (stroke or pressure ramp) and the lowest pressure it reaches (in
-    # tenths of the top pressure). The rarest kinds are dealt first, each in time order: the few
-    # units that alone show a part of the state space (a sinusoidal test's pressurising and
-    # venting, an isometric test's strokes at zero pressure) land in different folds, so no
-    # training set lacks what its held-out fold asks about; a common kind keeps the time order
-    # (branches of both directions at every level and position in the test in every fold)
-    top = max(float(np.max(P, initial=0.0)), 1.0)
-    kinds = [
-        (d, int(np.floor(10.0 * max(float(np.percentile(P[s0:s1], 2)), 0.0) / top))) for s0, s1, d in units
-    ]
-    count = Counter(kinds)
-    order = sorted(range(len(units)), key=lambda i: (count[kinds[i]], kinds[i][1], kinds[i][0], units[i][0]))
     if pieces > 1:
         order = list(range(len(units)))  # pieces of a few half-cycles: in time order, so they interleave
+    else:
+        # a unit's kind: its driver (stroke or pressure ramp) and the lowest pressure it reaches
+        # (in tenths of the top pressure). The rarest kinds are dealt first, each in time order:
+        # the few units that alone show a part of the state space (a sinusoidal test's
+        # pressurising and venting, an isometric test's strokes at zero pressure) land in
+        # different folds, so no training set lacks what its held-out fold asks about; a common
+        # kind keeps the time order (branches of both directions at every level and position in
+        # the test in every fold)
+        top = max(float(np.max(P, initial=0.0)), 1.0)
+        kinds = [
+            (d, int(np.floor(10.0 * max(float(np.percentile(P[s0:s1], 2)), 0.0) / top)))
+            for s0, s1, d in units
+        ]
+        count = Counter(kinds)
+        order = sorted(
+            range(len(units)), key=lambda i: (count[kinds[i]], kinds[i][1], kinds[i][0], units[i][0])
+        )
     fold = np.zeros(n, dtype=int)
     for dealt, i in enumerate(order):
         s0, s1, _ = units[i]
@@ -400,8 +405,8 @@ def _folds(half_info, n, P, x) -> tuple[np.ndarray, int, str]:
         rule = f"held out: whole half-cycles ({len(units)}), dealt round-robin into {k} folds"
     else:
         rule = (
-            f"held out: contiguous blocks of equal progress in time and ground covered ({pieces} per half-cycle, "
-            f"{len(units)} in all; the test "
-            f"has only {len(half_info)} half-cycle(s)), dealt round-robin into {k} folds"
+            f"held out: contiguous blocks of equal progress in time and ground covered ({pieces} per "
+            f"half-cycle, {len(units)} in all; the test has only {len(half_info)} half-cycle(s)), dealt "
+            f"round-robin into {k} folds"
         )
     return fold, k, rule
