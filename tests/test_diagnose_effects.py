@@ -75,7 +75,7 @@ def test_bladder_share_plus_pressure_term_is_eq2(fam1):
 
 
 VALUES = {
-    "friction": dict(f0_N=2.0, f1_N_per_MPa=8.0, g0_N=1.0, g1_N_per_MPa=3.0, slip_strain=0.004, slip_kPa=8.0),
+    "friction": dict(f0_N=2.0, f1_N_per_MPa=8.0, slip_strain=0.004, slip_kPa=8.0, relax_per_s=0.05),
     "viscoelasticity": dict(k0_N=40.0, k1_N_per_MPa=60.0, tau_s=3.0),
     "end_effects": dict(kappa0=0.05, kappa1=0.1, P_e_kPa=80.0),
     "braid_compliance": dict(b1_per_MPa=0.02, b2_per_MPa2=-0.01),
@@ -120,8 +120,9 @@ def test_friction_is_rate_independent_and_viscoelasticity_is_not(fam1):
     P = np.full(800, 300e3)
     slow, fast = np.linspace(0, 80, 800), np.linspace(0, 8, 800)
     fr, ve = E.get("friction"), E.get("viscoelasticity")
-    f_slow = fr.force(_ctx(fam1, slow, path, P), VALUES["friction"])
-    f_fast = fr.force(_ctx(fam1, fast, path, P), VALUES["friction"])
+    stuck = dict(VALUES["friction"], relax_per_s=0.0)  # a contact that does not relax in time
+    f_slow = fr.force(_ctx(fam1, slow, path, P), stuck)
+    f_fast = fr.force(_ctx(fam1, fast, path, P), stuck)
     np.testing.assert_allclose(f_slow, f_fast, atol=1e-12)
     v_slow = ve.force(_ctx(fam1, slow, path, P), VALUES["viscoelasticity"])
     v_fast = ve.force(_ctx(fam1, fast, path, P), VALUES["viscoelasticity"])
@@ -132,11 +133,35 @@ def test_friction_opposes_motion_and_persists_through_a_hold(fam1):
     rest = fam1.rest_length_m
     L = rest * (1 + 0.4 * np.r_[np.linspace(0, 1, 300), np.ones(200)])
     t = np.linspace(0, 100, 500)
-    values = dict(VALUES["friction"], g0_N=0.0, g1_N_per_MPa=0.0)
+    values = dict(VALUES["friction"], relax_per_s=0.0)
     f = E.get("friction").force(_ctx(fam1, t, L, np.full(500, 200e3)), values)
     expected = -(values["f0_N"] + values["f1_N_per_MPa"] * 0.2)  # lengthening: pushes less
     assert f[250] == pytest.approx(expected)
     assert f[-1] == pytest.approx(expected)  # stick: no relaxation during the hold
+    # a contact that relaxes (the supply's dither): the stuck force decays as exp(-r t) in the hold
+    relaxing = dict(values, relax_per_s=0.05)
+    f = E.get("friction").force(_ctx(fam1, t, L, np.full(500, 200e3)), relaxing)
+    hold = np.arange(300, 500)
+    np.testing.assert_allclose(f[hold] / f[299], np.exp(-0.05 * (t[hold] - t[299])), rtol=1e-12)
+
+
+def test_a_pressure_change_slides_the_same_contact_as_a_stroke(fam1):
+    # one contact, one slip: after a lengthening stroke the play is at +1; at the held length a
+    # pressure change of w_P moves it by s_P (B^2 > 3 L^2 here: pressure pushes, s_P = +1), so
+    # venting by 2 w_P reverses the friction force, and a rise of w_P / 4 from there moves it by 1/4
+    rest = fam1.rest_length_m
+    assert fam1.thread_length_m**2 > 3 * (1.2 * rest) ** 2
+    v = dict(VALUES["friction"], relax_per_s=0.0)
+    wp = v["slip_kPa"] * 1e3
+    L = rest * np.r_[np.linspace(1.0, 1.2, 100), np.full(300, 1.2)]
+    P = 300e3 + np.r_[np.zeros(100), np.linspace(0.0, -2 * wp, 100), np.full(100, -2 * wp),
+                      np.linspace(-2 * wp, -1.75 * wp, 100)]  # fmt: skip
+    t = np.linspace(0.0, 40.0, 400)
+    f = E.get("friction").force(_ctx(fam1, t, L, P), v)
+    stick = -(v["f0_N"] + v["f1_N_per_MPa"] * P / 1e6)  # the force at z = +1
+    assert f[99] == pytest.approx(stick[99])  # after the stroke: z = +1
+    assert f[250] == pytest.approx(-stick[250])  # vented by 2 w_P: z = -1
+    assert f[-1] == pytest.approx(-0.75 * stick[-1])  # up by w_P / 4: z = -1 + 1/4
 
 
 def test_maxwell_branch_relaxes_exponentially_during_a_hold(fam1):

@@ -173,8 +173,8 @@ def _sine_strokes_at_300_kPa():
 
 
 def _friction(muscle, f0_N: float) -> EffectModel:
-    return EffectModel(muscle, [("friction", {"f0_N": f0_N, "f1_N_per_MPa": 10.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
-                                              "slip_strain": 0.005, "slip_kPa": 10.0})])  # fmt: skip
+    return EffectModel(muscle, [("friction", {"f0_N": f0_N, "f1_N_per_MPa": 10.0, "slip_strain": 0.005,
+                                              "slip_kPa": 0.0, "relax_per_s": 0.0})])  # fmt: skip
 
 
 def test_a_difference_a_parameter_refit_makes_does_not_count_as_separation():
@@ -508,9 +508,8 @@ def test_a_transport_delay_is_fitted_as_one(cases):
 def _friction_and_viscoelasticity(muscle) -> dict:
     """Two fitted hypotheses that differ in holds and rate: a pressure-scaled friction and a
     one-branch viscoelasticity, each on ``muscle``."""
-    friction = EffectModel(muscle, [("friction", {"f0_N": 3.0, "f1_N_per_MPa": 10.0, "g0_N": 0.0,
-                                                   "g1_N_per_MPa": 0.0, "slip_strain": 0.01,
-                                                   "slip_kPa": 10.0})])  # fmt: skip
+    friction = EffectModel(muscle, [("friction", {"f0_N": 3.0, "f1_N_per_MPa": 10.0, "slip_strain": 0.01,
+                                                   "slip_kPa": 0.0, "relax_per_s": 0.0})])  # fmt: skip
     visco = EffectModel(muscle, [("viscoelasticity", {"k0_N": 60.0, "k1_N_per_MPa": 200.0, "tau_s": 2.0})])
     return {"friction": friction, "viscoelasticity": visco}
 

@@ -45,9 +45,9 @@ _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CTRL_GAIN, CTRL_OFFSET, CTRL_MIX = "efam_ctrl_gain", "efam_ctrl_offset_Pa", "efam_ctrl_mix"
 #: one-way couplings in an MJCF: (receiving muscle index, source muscle index, c) triples, flattened
 CTRL_COUPLING = "efam_ctrl_coupling"
-#: friction term lifted from the muscle level: fixed pre-sliding widths, fitted amplitude
+#: friction term lifted from the muscle level: a fixed pre-sliding strain, a fitted amplitude; the
+#: arm's strokes slide it (no pressure slip, no relaxation)
 FRICTION_SLIP_STRAIN = 3e-3
-FRICTION_SLIP_KPA = 6.0
 #: impedance of the tendon form of muscle friction: MuJoCo's default soft frictionloss lets the light
 #: links creep through it within a few steps (no visible friction), so it is made near-hard
 FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
@@ -237,9 +237,9 @@ class Replayer:
 
     @staticmethod
     def friction_values(f0_N: float) -> dict:
-        """The plugin's friction config (unsegmented muscles): amplitude f0, fixed slip widths."""
-        return {"f0_N": f0_N, "f1_N_per_MPa": 0.0, "g0_N": 0.0, "g1_N_per_MPa": 0.0,
-                "slip_strain": FRICTION_SLIP_STRAIN, "slip_kPa": FRICTION_SLIP_KPA}  # fmt: skip
+        """The plugin's friction config (unsegmented muscles): amplitude f0, a fixed slip strain."""
+        return {"f0_N": f0_N, "f1_N_per_MPa": 0.0, "slip_strain": FRICTION_SLIP_STRAIN,
+                "slip_kPa": 0.0, "relax_per_s": 0.0}  # fmt: skip
 
     def model_with(self, k: Knobs) -> mujoco.MjSpec:
         """``edited_spec(k)`` plus ``k``'s command map stored as custom numerics (an MJCF that a

@@ -4,14 +4,15 @@ Every candidate adds a force ``dF`` (N, MuJoCo sign: positive pushes the ends ap
 model's ``Muscle.push(P, L)``. It is computed from what a simulation step knows: the gauge pressure
 P, the length L, their previous values (so their rates), the time t since the start, and a small
 state. Each term is written so that its amplitudes enter linearly (fitted by bounded linear least
-squares together with small corrections of the model's own parameters) and at most two *shape*
-parameters (a slip width, a time constant) enter non-linearly (searched on a grid, then refined).
+squares together with small corrections of the model's own parameters) and at most three *shape*
+parameters (slip widths, a relaxation rate, a time constant) enter non-linearly (searched on a
+grid, then refined).
 
 Notation: x = L / L_rest - 1 (axial strain), P_MPa = P / 1e6, B and N the thread length and turns,
 F(P, L) the model's push force, play(u, w) the play operator (a backlash of half-width w whose
 output z in [-1, 1] moves only while u keeps moving the same way: z_k = clip(z_{k-1} + du_k / w,
--1, 1)), lag(u, tau) the first-order lag y_k = y_{k-1} + (1 - exp(-dt / tau)) (u_k - y_{k-1})
-(MuJoCo's ``filterexact``).
+-1, 1); friction's may also relax toward 0 in time), lag(u, tau) the first-order lag
+y_k = y_{k-1} + (1 - exp(-dt / tau)) (u_k - y_{k-1}) (MuJoCo's ``filterexact``).
 
 A tension-only muscle that the model calls slack carries no effect force except the sensor's
 (``force_offset``): the terms are multiplied by ``engaged`` = (model force != 0).
@@ -98,16 +99,22 @@ def delayed(t: np.ndarray, u: np.ndarray, delay: float, starts=(0,)) -> np.ndarr
     return out
 
 
-def play(u: np.ndarray, width: float, starts=(0,)) -> np.ndarray:
-    """Play operator output z in [-1, 1] (0 at each start): z_k = clip(z_{k-1} + du_k/width, -1, 1)."""
+def play(u: np.ndarray, width: float, starts=(0,), t=None, relax_per_s: float = 0.0) -> np.ndarray:
+    """Play operator output z in [-1, 1] (0 at each start): z_k = clip(a_k z_{k-1} + du_k/width,
+    -1, 1) with a_k = exp(-relax_per_s (t_k - t_{k-1})): 1 (no relaxation) unless times ``t`` and
+    a rate are given."""
     out = np.empty(len(u))
     values = (np.asarray(u, dtype=float) / width).tolist()
+    if relax_per_s > 0.0 and t is not None:
+        keep = np.exp(-relax_per_s * np.diff(np.asarray(t, dtype=float), prepend=float(t[0]))).tolist()
+    else:
+        keep = [1.0] * len(values)
     for b, e in segments(np.asarray(starts), len(u)):
         z = 0.0
         prev = values[b]
         for i in range(b, e):
             v = values[i]
-            z += v - prev
+            z = z * keep[i] + v - prev
             prev = v
             z = 1.0 if z > 1.0 else (-1.0 if z < -1.0 else z)
             out[i] = z
@@ -420,57 +427,94 @@ class Sample:
 
 
 class Friction(Effect):
-    """Rate-independent friction: play operators in strain and in pressure, each growing with pressure."""
+    """Rate-independent friction at one sliding contact: a play operator on a slip that the strain
+    and the pressure both drive, its stick force growing with pressure and able to relax in holds."""
 
     def __init__(self):
         super().__init__(
             name="friction",
-            summary="direction-dependent, rate-independent hysteresis (braid/bladder/tube friction)",
+            summary=(
+                "direction-dependent, rate-independent hysteresis (braid/bladder/tube friction); "
+                "a stroke and a pressure change slide the same contact"
+            ),
             equation=(
-                "dF = -(f0 + f1 P_MPa) play(x, w_x) - (g0 + g1 P_MPa) s_P play(P, w_P), "
-                "s_P = sign(B^2 - 3 L^2)"
+                "dF = -(f0 + f1 P_MPa) z,  z = play(x / w_x + s_P P / w_P) relaxing at rate r: "
+                "z_k = clip(exp(-r dt) z_{k-1} + du_k, -1, 1),  s_P = sign(B^2 - 3 L^2)"
             ),
             params=(
-                Param("f0_N", 0.0, 100.0, meaning="friction force opposing motion at zero pressure"),
-                Param("f1_N_per_MPa", 0.0, 300.0, meaning="its growth with pressure"),
-                Param("g0_N", 0.0, 100.0, meaning="force lag while pressurising/venting at zero pressure"),
-                Param("g1_N_per_MPa", 0.0, 300.0, meaning="its growth with pressure"),
+                Param("f0_N", 0.0, 100.0, meaning="friction force opposing the slip at zero pressure"),
+                Param("f1_N_per_MPa", 0.0, 300.0, meaning="its growth with pressure (the contact's load)"),
                 Param(
-                    "slip_strain", 5e-4, 0.05, True, (1e-3, 3e-3, 6e-3, 0.012, 0.025), "pre-sliding strain"
+                    "slip_strain",
+                    5e-4,
+                    0.05,
+                    shape=True,
+                    grid=(1e-3, 3e-3, 6e-3, 0.012, 0.025),
+                    meaning="pre-sliding strain: the stroke that slides the contact through its stick range",
                 ),
-                Param("slip_kPa", 0.5, 100.0, True, (2.0, 6.0, 15.0, 40.0), "pre-sliding pressure change"),
+                Param(
+                    "slip_kPa",
+                    0.0,
+                    1e4,
+                    shape=True,
+                    grid=(5.0, 20.0, 80.0, 300.0, 1500.0),
+                    meaning="the pressure change (at a fixed length) that does the same; 0: pressure slides nothing",
+                ),
+                Param(
+                    "relax_per_s",
+                    0.0,
+                    10.0,
+                    shape=True,
+                    grid=(1e-3, 0.03, 0.3),
+                    meaning="rate at which the stuck force relaxes in a hold (the supply's dither, creep of "
+                    "the contact); 0: it persists",
+                ),
             ),
-            state=("z_x", "z_P"),
-            plugin="efam.muscle keys friction.*; 2 play states (and the shared previous L and P)",
-            signature="a force step with the direction of motion that persists through holds",
+            state=("z",),
+            plugin="efam.muscle keys friction.*; 1 play state (and the shared previous L and P)",
+            signature=(
+                "a force step with the direction of motion, the same at any speed, held (or slowly "
+                "relaxed) in holds"
+            ),
         )
 
+    #: the search's lowest relaxation rate (a log-space search cannot reach 0): 1e-4/s moves a
+    #: stuck force by under 3 % in a 300 s test
+    RELAX_FLOOR_PER_S = 1e-4
+
     def shape_range(self, ctx, p):
+        if p.key == "relax_per_s":
+            return self.RELAX_FLOOR_PER_S, p.grid, p.hi
         # a pre-sliding width below a few sensor-noise steps would let the play operator follow
         # the measured noise (and "explain" the noise the model inherits from its inputs)
         noise = ctx.pressure_noise_Pa / 1e3 if p.key == "slip_kPa" else ctx.strain_noise
-        lo = max(p.lo, 8.0 * noise)
+        lo = max(p.lo, 8.0 * noise, 0.5 if p.key == "slip_kPa" else 0.0)
         grid = tuple(sorted({max(g, lo) for g in p.grid}))
         return lo, grid, max(p.hi, lo)
 
     def _design(self, ctx, shape):
-        wx, wp = shape["slip_strain"], shape["slip_kPa"] * 1e3
-        zx = ctx.cached(("play_x", wx), lambda: play(ctx.x, wx, ctx.starts))
-        zp = ctx.cached(("play_P", wp), lambda: play(ctx.P, wp, ctx.starts)) * ctx.pressure_sign()
-        cols = -np.column_stack([zx, ctx.P_MPa * zx, zp, ctx.P_MPa * zp])
-        return np.zeros(ctx.n), _gate(ctx, cols)
+        wx, wp, rate = shape["slip_strain"], shape["slip_kPa"] * 1e3, shape["relax_per_s"]
+
+        def state():
+            slip = ctx.x / wx + (ctx.pressure_sign() * ctx.P / wp if wp > 0 else 0.0)
+            return play(slip, 1.0, ctx.starts, ctx.t, rate)
+
+        z = ctx.cached(("friction", wx, wp, rate), state)
+        return np.zeros(ctx.n), _gate(ctx, -np.column_stack([z, ctx.P_MPa * z]))
 
     def step(self, v, state, s: Sample) -> float:
-        """One sample of the two play operators (strain and pressure); see :class:`Effect.step`."""
+        """One sample of the play operator on the slip; see :class:`Effect.step`."""
         if s.first:
-            state[:] = [0.0, 0.0]
-        dx = (s.L - s.L_prev) / s.muscle.rest_length_m
-        state[0] = min(1.0, max(-1.0, state[0] + dx / v["slip_strain"]))
-        state[1] = min(1.0, max(-1.0, state[1] + (s.P - s.P_prev) / (v["slip_kPa"] * 1e3)))
-        sign_p = -math.copysign(1.0, 3 * s.L**2 - s.muscle.thread_length_m**2)
-        p = s.P / 1e6
-        force = -(v["f0_N"] + v["f1_N_per_MPa"] * p) * state[0]
-        force -= (v["g0_N"] + v["g1_N_per_MPa"] * p) * sign_p * state[1]
+            state[0] = 0.0
+        slip = (s.L - s.L_prev) / s.muscle.rest_length_m / v["slip_strain"]
+        if v["slip_kPa"] > 0:
+            b2 = s.muscle.thread_length_m**2
+            sign_now = -math.copysign(1.0, 3 * s.L**2 - b2)
+            sign_prev = -math.copysign(1.0, 3 * s.L_prev**2 - b2)
+            slip += (sign_now * s.P - sign_prev * s.P_prev) / (v["slip_kPa"] * 1e3)
+        z = state[0] * math.exp(-v["relax_per_s"] * s.dt) + slip
+        state[0] = min(1.0, max(-1.0, z))
+        force = -(v["f0_N"] + v["f1_N_per_MPa"] * s.P / 1e6) * state[0]
         return force if s.engaged else 0.0
 
 

@@ -67,14 +67,13 @@ typedef struct {
 // effects.LIBRARY without force_offset, parameters in its order (the step functions index them).
 static const EffectSpec kEffects[NEFFECT] = {
     {"friction",
-     6,
+     5,
      {{"f0_N", 0.0, 100.0},
       {"f1_N_per_MPa", 0.0, 300.0},
-      {"g0_N", 0.0, 100.0},
-      {"g1_N_per_MPa", 0.0, 300.0},
       {"slip_strain", 5e-4, 0.05},
-      {"slip_kPa", 0.5, 100.0}},
-     2},
+      {"slip_kPa", 0.0, 1e4},
+      {"relax_per_s", 0.0, 10.0}},
+     1},
     {"viscoelasticity", 3, {{"k0_N", 0.0, 5000.0}, {"k1_N_per_MPa", 0.0, 10000.0}, {"tau_s", 0.1, 500.0}}, 1},
     {"end_effects", 3, {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}}, 0},
     {"braid_compliance", 2, {{"b1_per_MPa", 0.0, 0.2}, {"b2_per_MPa2", -0.2, 0.2}}, 0},
@@ -421,18 +420,20 @@ typedef struct {
 
 static double fx_clip1(double z) { return z > 1.0 ? 1.0 : (z < -1.0 ? -1.0 : z); }
 
-// Friction.step: two play operators (strain, pressure).
+// Friction.step: one play operator on the slip that the strain and the pressure both drive,
+// relaxing at relax_per_s; slip_kPa 0: pressure slides nothing.
 static double friction_step(const EffectsMuscle* k, const double* v, double* z, const EffectSample* s) {
   if (s->first) {
-    z[0] = z[1] = 0.0;
+    z[0] = 0.0;
   }
-  double dx = (s->L - s->L_prev) / k->rest_length;
-  z[0] = fx_clip1(z[0] + dx / v[4]);
-  z[1] = fx_clip1(z[1] + (s->P - s->P_prev) / (v[5] * 1e3));
-  double sign_p = -copysign(1.0, 3 * libm_pow(s->L, 2) - k->thread_sq_pow);
-  double p = s->P / 1e6;
-  double force = -(v[0] + v[1] * p) * z[0];
-  force -= (v[2] + v[3] * p) * sign_p * z[1];
+  double slip = (s->L - s->L_prev) / k->rest_length / v[2];
+  if (v[3] > 0) {
+    double sign_now = -copysign(1.0, 3 * libm_pow(s->L, 2) - k->thread_sq_pow);
+    double sign_prev = -copysign(1.0, 3 * libm_pow(s->L_prev, 2) - k->thread_sq_pow);
+    slip += (sign_now * s->P - sign_prev * s->P_prev) / (v[3] * 1e3);
+  }
+  z[0] = fx_clip1(z[0] * exp(-v[4] * s->dt) + slip);
+  double force = -(v[0] + v[1] * s->P / 1e6) * z[0];
   return s->engaged ? force : 0.0;
 }
 
