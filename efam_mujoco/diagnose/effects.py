@@ -467,7 +467,8 @@ class Friction(Effect):
                     shape=True,
                     grid=(1e-3, 0.03, 0.3),
                     meaning="rate at which the stuck force relaxes in a hold (the supply's dither, creep of "
-                    "the contact); 0: it persists",
+                    "the contact); 0 (when absent): it persists",
+                    default=0.0,
                 ),
             ),
             state=("z",),

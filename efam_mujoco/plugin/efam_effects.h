@@ -72,7 +72,7 @@ static const EffectSpec kEffects[NEFFECT] = {
       {"f1_N_per_MPa", 0.0, 300.0},
       {"slip_strain", 5e-4, 0.05},
       {"slip_kPa", 0.0, 1e4},
-      {"relax_per_s", 0.0, 10.0}},
+      {"relax_per_s", 0.0, 10.0, 1, 0.0}},
      1},
     {"viscoelasticity", 3, {{"k0_N", 0.0, 5000.0}, {"k1_N_per_MPa", 0.0, 10000.0}, {"tau_s", 0.1, 500.0}}, 1},
     {"end_effects", 3, {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}}, 0},
