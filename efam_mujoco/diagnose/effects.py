@@ -482,25 +482,26 @@ class Friction(Effect):
     #: the search's lowest relaxation rate (a log-space search cannot reach 0): 1e-4/s moves a
     #: stuck force by under 3 % in a 300 s test
     RELAX_FLOOR_PER_S = 1e-4
+    #: the search's narrowest pressure width (slip_kPa = 0, no pressure slip, is the user's to set)
+    SLIP_FLOOR_KPA = 0.5
 
     def shape_range(self, ctx, p):
         if p.key == "relax_per_s":
             return self.RELAX_FLOOR_PER_S, p.grid, p.hi
         # a pre-sliding width below a few sensor-noise steps would let the play operator follow
         # the measured noise (and "explain" the noise the model inherits from its inputs)
-        noise = ctx.pressure_noise_Pa / 1e3 if p.key == "slip_kPa" else ctx.strain_noise
-        lo = max(p.lo, 8.0 * noise, 0.5 if p.key == "slip_kPa" else 0.0)
+        if p.key == "slip_kPa":
+            lo = max(self.SLIP_FLOOR_KPA, 8.0 * ctx.pressure_noise_Pa / 1e3)
+        else:
+            lo = max(p.lo, 8.0 * ctx.strain_noise)
         grid = tuple(sorted({max(g, lo) for g in p.grid}))
         return lo, grid, max(p.hi, lo)
 
     def _design(self, ctx, shape):
+        # the state depends on every shape parameter, so design()'s cache (per shape) holds it
         wx, wp, rate = shape["slip_strain"], shape["slip_kPa"] * 1e3, shape["relax_per_s"]
-
-        def state():
-            slip = ctx.x / wx + (ctx.pressure_sign() * ctx.P / wp if wp > 0 else 0.0)
-            return play(slip, 1.0, ctx.starts, ctx.t, rate)
-
-        z = ctx.cached(("friction", wx, wp, rate), state)
+        slip = ctx.x / wx + (ctx.pressure_sign() * ctx.P / wp if wp > 0 else 0.0)
+        z = play(slip, 1.0, ctx.starts, ctx.t, rate)
         return np.zeros(ctx.n), _gate(ctx, -np.column_stack([z, ctx.P_MPa * z]))
 
     def step(self, v, state, s: Sample) -> float:
