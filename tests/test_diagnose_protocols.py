@@ -3,6 +3,8 @@ the segmentation of protocols it was not developed with, the probabilities, the 
 correction and the next-experiment design. Truths come from ``diagnose.virtual_bench`` (written
 independently of the library, in other functional forms)."""
 
+import math
+
 import mujoco
 import numpy as np
 import pytest
@@ -742,3 +744,32 @@ def test_the_only_low_pressure_half_cycles_of_a_test_land_in_different_folds():
         held = labels.fold == k
         assert (low & ~held).any(), f"fold {k}: its training set has no low pressure"
     assert labels.fold[0] != labels.fold[-1]  # the pressurising and the venting ramp
+
+
+def test_scoring_sees_the_effect_not_the_sensors_noise():
+    """The benchmark's "does the effect show" check works on noise-free inputs: the sensors'
+    noise passes into the force through Eq. 2 in every recording, clean ones too, and no
+    hypothesis can take it up. On a clean file the truth muscle at the noise-free inputs
+    reproduces the truth force (only the sub-sample averaging differs); at the recorded inputs it
+    is off by exactly what the generator's sensor noise (700 Pa and 10 um, white) does through
+    Eq. 2, one sensor at a time, added in quadrature."""
+    case = V.draw_case(102050, "sinusoidal", "clean")
+    rec = V.make(case)
+    m = case.muscle
+    P, L = case.true_pressure_Pa, case.true_length_m
+    assert np.std(rec.pressure_Pa - P) == pytest.approx(700.0, rel=0.05)
+    assert np.std(rec.length_m - L) == pytest.approx(1e-5, rel=0.05)
+
+    def rms(u):
+        return float(np.sqrt(np.mean(u**2)))
+
+    by_pressure = rms(m.push(rec.pressure_Pa, L) - m.push(P, L))
+    by_length = rms(m.push(P, rec.length_m) - m.push(P, L))
+    assert rms(m.push(P, L) - case.true_force_N) < 0.02
+    assert rms(m.push(rec.pressure_Pa, rec.length_m) - case.true_force_N) == pytest.approx(
+        math.hypot(by_pressure, by_length), rel=0.05
+    )
+    # together large enough to pass for an effect by the old check (noisy inputs)
+    assert math.hypot(by_pressure, by_length) > 0.25 * case.noise_N
+    shows, left = V.identifiable(case, rec, m)
+    assert left < 0.05 and not shows

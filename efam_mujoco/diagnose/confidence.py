@@ -101,14 +101,14 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.461  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 6.035
-    c: float = -8.097
+    a: float = -2.791  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 6.270
+    c: float = -7.427
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = -0.436  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -10.404
-    cn: float = -12.997
-    dn: float = -1.772  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = 1.980  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -20.911
+    cn: float = -24.601
+    dn: float = -1.441  # weight of the best effect's paired separation from none (``best_effect_z``)
 
 
 CALIBRATION = Calibration()
