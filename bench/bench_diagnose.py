@@ -156,13 +156,21 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         e = experiment(rec["name"], d.ctx, stroke_speed(d.ctx, d.labels))
         extra = V.run_plan(case, e.t, e.L, e.P, min(case.sample_hz, 100.0), seed)
         d2 = diagnose([recording, extra], nominal, next_experiment=False)
+        # the joined answer is judged on the joined data: the new test can make an effect show
+        # that the first recording hid (or an effect that showed is still there)
+        shows_joined, left_joined = (
+            V.identifiable(case, recording, nominal, more=(extra.meta["noise_free"],))
+            if case.effects
+            else (True, 0.0)
+        )
         row["next"] = {
             "experiment": rec["name"], "predicted_difference_rms_N": rec["predicted_difference_rms_N"],
             "ratio_to_noise": rec["ratio_to_noise"], "expected_z": rec.get("expected_z"),
             "blocks": rec.get("blocks"), "duration_s": rec.get("duration_s"), "answer": d2.verdict.answer,
             "probability": d2.verdict.probability, "confident": d2.verdict.confident,
             "ambiguous_after": d2.verdict.ambiguous,
-            "correct": correct(d2.verdict.answer, kind, case.names, shows),
+            "correct": correct(d2.verdict.answer, kind, case.names, shows_joined),
+            "shows_joined": shows_joined, "truth_left_joined_N": left_joined,
             # the joined verdict's inputs, so that a calibration can weigh the joined diagnoses too
             **_verdict_inputs(d2),
         }  # fmt: skip

@@ -53,6 +53,18 @@ def test_play_operator_saturates_after_twice_its_width_and_holds():
     assert np.all(z[120:] == -1.0)
 
 
+def test_a_relaxing_play_restarts_with_each_recordings_clock():
+    # two recordings joined, the second's clock starting again at 0 after 600 s: the jump back
+    # is not a time step (exp(+relax x 600 s) would overflow and 0 x inf poison the file), and
+    # each recording plays exactly as it does alone; within one, a hold decays as exp(-r t)
+    t = np.r_[np.linspace(0, 600, 601), np.linspace(0, 100, 101)]
+    u = np.r_[np.linspace(0, 0.5, 601), np.r_[np.linspace(0, 0.05, 11), np.full(90, 0.05)]]
+    z = E.play(u, 0.1, starts=(0, 601), t=t, relax_per_s=2.0)
+    assert np.all(np.isfinite(z))
+    np.testing.assert_array_equal(z[601:], E.play(u[601:], 0.1, t=t[601:], relax_per_s=2.0))
+    assert z[611] > 0.05 and z[611 + 3] == pytest.approx(z[611] * math.exp(-2.0 * 3.0), rel=1e-12)
+
+
 def test_high_frequency_noise_recovers_white_noise_under_a_smooth_signal():
     rng = np.random.default_rng(1)
     t = np.linspace(0, 100, 20000)

@@ -106,7 +106,11 @@ def play(u: np.ndarray, width: float, starts=(0,), t=None, relax_per_s: float = 
     out = np.empty(len(u))
     values = (np.asarray(u, dtype=float) / width).tolist()
     if relax_per_s > 0.0 and t is not None:
-        keep = np.exp(-relax_per_s * np.diff(np.asarray(t, dtype=float), prepend=float(t[0]))).tolist()
+        dt = np.diff(np.asarray(t, dtype=float), prepend=float(t[0]))
+        # each recording's clock starts again: the step into a start is not a time step (going
+        # back hundreds of seconds it would overflow exp, and 0 x inf would poison the file)
+        dt[np.asarray(starts, dtype=int)] = 0.0
+        keep = np.exp(-relax_per_s * dt).tolist()
     else:
         keep = [1.0] * len(values)
     for b, e in segments(np.asarray(starts), len(u)):

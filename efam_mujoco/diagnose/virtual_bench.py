@@ -648,19 +648,22 @@ def _noise_free(case: Case, recording: Recording) -> Recording:
     return Recording(recording.time_s, np.asarray(L, float), np.asarray(P, float), case.true_force_N)
 
 
-def identifiable(case: Case, recording: Recording, nominal, share: float = 0.25) -> tuple[bool, float]:
+def identifiable(
+    case: Case, recording: Recording, nominal, share: float = 0.25, more: tuple[Recording, ...] = ()
+) -> tuple[bool, float]:
     """Whether the concealed effects show in this recording at all: the noise-free truth force is
     fitted by the model's own parameters alone (``model.refit``, the re-fit the diagnosis starts
     with) on noise-free inputs (:func:`_noise_free`), and what is left must stand above ``share``
     x the force noise. An effect the model's own parameters reproduce is parameter error by
-    design; for scoring, its right answer is ``none``. Returns (identifiable, RMS left in N)."""
+    design; for scoring, its right answer is ``none``. ``more``: further noise-free recordings of
+    the same truth diagnosed with it (``run_plan``'s ``meta["noise_free"]``): a next experiment
+    can make an effect show that the first recording hid. Returns (identifiable, RMS left in N)."""
     from .model import refit
 
-    truth = _noise_free(case, recording)
-    fitted = refit(nominal, [truth])
-    left = float(
-        np.sqrt(np.mean((fitted.muscle.push(truth.pressure_Pa, truth.length_m) - truth.force_N) ** 2))
-    )
+    truths = [_noise_free(case, recording), *more]
+    fitted = refit(nominal, truths)
+    residual = np.concatenate([fitted.muscle.push(r.pressure_Pa, r.length_m) - r.force_N for r in truths])
+    left = float(np.sqrt(np.mean(residual**2)))
     return left >= share * case.noise_N, left
 
 
@@ -698,4 +701,6 @@ def run_plan(case: Case, t, L, P_set, sample_hz: float, seed: int) -> Recording:
     twin = replace(case, params={})
     recording = simulate(twin, plan, rng, force_noise_N=case.noise_N)
     recording.meta["source"] = f"virtual bench seed {case.seed}: next experiment"
+    # for scoring only (``identifiable``'s ``more``); the diagnosis never reads it
+    recording.meta["noise_free"] = _noise_free(twin, recording)
     return recording
