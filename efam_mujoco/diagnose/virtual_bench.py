@@ -641,11 +641,13 @@ def _noise_free(case: Case, recording: Recording) -> Recording:
     sensor's noise passed into the force through dF/dP: that error is in every recording, clean
     ones too, and no hypothesis can take it up (on clean 85 Hz strokes it left 0.21 N after the
     re-fit, a quarter of the force noise)."""
-    L = case.true_length_m if case.true_length_m is not None else recording.length_m
-    P = case.true_pressure_Pa if case.true_pressure_Pa is not None else recording.pressure_Pa
-    if len(L) != len(recording.time_s) or len(P) != len(recording.time_s):
+    L, P, F = case.true_length_m, case.true_pressure_Pa, case.true_force_N
+    # no fallback to the recorded inputs: that is the noisy scoring this function exists to avoid
+    if L is None or P is None or F is None:
+        raise ValueError(f"seed {case.seed}: no noise-free truth (the case was not simulated)")
+    if not len(L) == len(P) == len(F) == len(recording.time_s):
         raise ValueError(f"seed {case.seed}: the noise-free inputs do not match the recording's samples")
-    return Recording(recording.time_s, np.asarray(L, float), np.asarray(P, float), case.true_force_N)
+    return Recording(recording.time_s, np.asarray(L, float), np.asarray(P, float), F)
 
 
 def identifiable(
