@@ -99,6 +99,15 @@ def test_identified_effect_switches_on_in_simulation(runs):
     assert after < 0.5 * before
 
 
+def test_the_physics_map_reads_the_reported_correction_on_top_of_the_named_terms(runs):
+    # the data-driven gain that doubts a name is the one the report shows beside it (with the
+    # input-error features, where a transducer's error that a static term half absorbs shows)
+    for effect in ("friction", "viscoelasticity", "drift"):
+        _, _, d = runs[effect]
+        assert d.effects and d.correction.to_json()["heldout_rms_before_N"] > 0
+        assert d.verdict.dd_gain == pytest.approx(d.correction.gain, abs=1e-12)
+
+
 def test_json_has_the_issue_fields(runs):
     _, _, d = runs["pressure_lag"]
     doc = json.loads(json.dumps(d.to_json()))

@@ -200,12 +200,16 @@ def diagnose(
     best_single = min(singles, key=lambda k: singles[k].heldout_rms) if singles else None
     kept = _agree(kept, raw, singles, engine, base, noise)
     final = kept[-1] if kept else base
+    # the data-driven correction on top of the named terms is the one reported, with the
+    # input-error features (``datadriven.features``): a transducer's nonlinearity that a static
+    # term half absorbs shows there, and the physics map reads its gain; on top of the bare
+    # model (the map of 'nothing is missing') the plain features, as that map was calibrated
     corr_none = correction(engine, base)
-    corr = correction(engine, final) if kept else corr_none
+    corr = correction(engine, final, sensitivity=True) if kept else corr_none
     corr_best = (
         corr
         if not best_single or (kept and kept[0].names[0] == best_single)
-        else correction(engine, singles[best_single])
+        else correction(engine, singles[best_single], sensitivity=True)
     )
     cut = notes.get(best_single, {}).get("excess_cut", 0.0) if best_single else 0.0
     excess = max(1.0 - noise**2 / max(base.heldout_rms**2, 1e-300), 0.0)
@@ -221,9 +225,7 @@ def diagnose(
     dd_z, dd_z_none = _dd_z(on_top[1], block), _dd_z(corr_none, block)
     judged = verdict(raw, cut, on_top[1].gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
                      pair=pair, block_sse=sse, dd_z=dd_z, dd_z_none=dd_z_none, excess_left=excess_left)  # fmt: skip
-    # the reported correction adds the input-error features (``datadriven.features``); the
-    # confidence above keeps the feature set its probability map was calibrated with
-    reported = correction(engine, final, sensitivity=True)
+    reported = corr if kept else correction(engine, base, sensitivity=True)
     unexplained = _unexplained(ctx, labels, force - final.prediction, noise, reported)
     design = None
     if judged.ambiguous and next_experiment:

@@ -20,8 +20,8 @@ hypotheses apart.
 the library leaves structured residual after the best library term, which then takes what it
 can. ``named_physics_probability`` maps two measured quantities to the probability that the
 winning library term is the right physics: the share of the held-out excess over the noise floor
-that it removes, and the held-out gain a purely data-driven correction (``datadriven``) still
-finds on top of it. When the model alone predicts best, ``none_probability`` maps the share of
+that it removes, and the held-out gain a purely data-driven correction (``datadriven``, the one
+reported, with the input-error features) still finds on top of it. When the model alone predicts best, ``none_probability`` maps the share of
 its held-out mean square above the noise floor, the data-driven gain on it, and the best library
 effect's paired separation from it (``best_effect_z``) to the probability that nothing is missing.
 Both maps are logistic functions fitted by maximum likelihood on calibration recordings of the
@@ -101,14 +101,14 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.791  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 6.270
-    c: float = -7.427
+    a: float = -2.760  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 6.172
+    c: float = -6.119
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = 1.980  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -20.911
-    cn: float = -24.601
-    dn: float = -1.441  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = 2.373  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -24.061
+    cn: float = -26.757
+    dn: float = -1.280  # weight of the best effect's paired separation from none (``best_effect_z``)
 
 
 CALIBRATION = Calibration()
