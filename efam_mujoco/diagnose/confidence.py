@@ -21,9 +21,10 @@ the library leaves structured residual after the best library term, which then t
 can. ``named_physics_probability`` maps two measured quantities to the probability that the
 winning library term is the right physics: the share of the held-out excess over the noise floor
 that it removes, and the held-out gain a purely data-driven correction (``datadriven``, the one
-reported, with the input-error features) still finds on top of it. When the model alone predicts best, ``none_probability`` maps the share of
-its held-out mean square above the noise floor, the data-driven gain on it, and the best library
-effect's paired separation from it (``best_effect_z``) to the probability that nothing is missing.
+reported, with the input-error features) still finds on top of it. When the model alone predicts
+best, ``none_probability`` maps the share of its held-out mean square above the noise floor, the
+data-driven gain on it (plain features), and the best library effect's paired separation from it
+(``best_effect_z``) to the probability that nothing is missing.
 Both maps are logistic functions fitted by maximum likelihood on calibration recordings of the
 virtual bench drawn in the benchmark's own mix of clean, one-effect, two-effect and outside cases
 (seeds ``CALIBRATION_SEEDS``, disjoint from the benchmark's; ``bench/bench_diagnose.py
