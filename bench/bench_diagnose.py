@@ -49,6 +49,7 @@ from efam_mujoco.diagnose.confidence import (  # noqa: E402
     OUTSIDE,
     Calibration,
     best_effect_z,
+    insample_supported,
     none_features,
     physics_features,
     verdict,
@@ -116,7 +117,8 @@ def _verdict_inputs(d) -> dict:
     v = d.verdict
     return {"raw": v.raw, "excess_cut": v.excess_cut, "dd_gain": v.dd_gain, "n_blocks": v.n_blocks,
             "excess": v.excess, "dd_gain_none": v.dd_gain_none, "evidence": d.evidence,
-            "pair": [e["name"] for e in d.effects[:2]] if len(d.effects) >= 2 else []}  # fmt: skip
+            "pair": [e["name"] for e in d.effects[:2]] if len(d.effects) >= 2 else [],
+            "delta_bic": {c["name"]: c["delta_bic"] for c in d.candidates}}  # fmt: skip
 
 
 def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
@@ -287,7 +289,7 @@ def fit_calibration(rows: list[dict]) -> Calibration:
 
     effect_rows, none_rows = [], []
     for r in rows:
-        raw = r["raw"]
+        raw = insample_supported(r["raw"], r.get("delta_bic"))
         effects = {k: v for k, v in raw.items() if k != "none"}
         if effects:
             top = max(effects, key=effects.get)
@@ -351,7 +353,7 @@ def rescore(rows: list[dict], cal: Calibration) -> list[dict]:
         pair = tuple(r["pair"]) if r.get("pair") else None
         ev = r.get("evidence") or {}
         v = verdict(
-            r["raw"],
+            insample_supported(r["raw"], r.get("delta_bic")),
             r["excess_cut"],
             r["dd_gain"],
             r["n_blocks"],

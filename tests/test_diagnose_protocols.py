@@ -18,6 +18,7 @@ from efam_mujoco.diagnose.confidence import (
     block_sse,
     bootstrap,
     head_to_head,
+    insample_supported,
     none_probability,
     paired_log_z,
     paired_z,
@@ -108,6 +109,29 @@ def test_every_law_is_offered_the_zero_not_only_the_best_plain_fit():
 
 
 # ----------------------------------------------------------------------------- confidence
+def test_an_effect_that_does_not_pay_in_sample_gives_its_held_out_wins_to_none():
+    raw = {"none": 0.1, "drift": 0.7, "friction": 0.2}
+    # drift's single fit raises the in-sample BIC (+13.6), friction's lowers it (-250)
+    gated = insample_supported(raw, {"drift": 13.6, "friction": -250.0}, threshold=0.0)
+    assert gated == pytest.approx({"none": 0.8, "drift": 0.0, "friction": 0.2})
+    assert insample_supported(gated, {"drift": 13.6, "friction": -250.0}, threshold=0.0) == gated
+    # without a BIC change (older rows, or none given) nothing moves
+    assert insample_supported(raw, {"drift": None}) == raw
+    assert insample_supported(raw, None) == raw
+
+
+def test_a_clean_isometric_test_is_not_called_drift_for_a_held_out_win_alone():
+    # clean pressure ramps at two lengths (virtual bench, retired seed 104001): in-sample every
+    # hypothesis sits at the noise; held out, the model alone is 18 % above it and a drift's time
+    # columns take that up (93 % of the bootstrap draws). Drift does not pay in-sample (its BIC
+    # rises), so its held-out wins are not evidence: it was answered `drift` at p 0.88
+    case = V.draw_case(104001, "isometric", "clean")
+    d = diagnose([V.make(case)], load_muscle(case.base_name), next_experiment=False)
+    assert d.decisions["drift"]["delta_bic"] > 0.0
+    assert d.verdict.raw["drift"] == 0.0
+    assert d.verdict.answer == "none"
+
+
 def test_bootstrap_is_sure_of_a_clear_winner_and_splits_a_tie():
     rng = np.random.default_rng(0)
     n, blocks = 3000, np.repeat(np.arange(30), 100)

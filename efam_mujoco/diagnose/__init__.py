@@ -27,7 +27,17 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..recordings import Recording
-from .confidence import CALIBRATION, OUTSIDE, Verdict, block_sse, blocks, bootstrap, paired_z, verdict
+from .confidence import (
+    CALIBRATION,
+    OUTSIDE,
+    Verdict,
+    block_sse,
+    blocks,
+    bootstrap,
+    insample_supported,
+    paired_z,
+    verdict,
+)
 from .datadriven import Corrected, Correction, correction
 from .design import recommend, stroke_speed
 from .effects import EFFECT_NAMES, LIBRARY, Context, EffectModel, apply, get
@@ -197,6 +207,8 @@ def diagnose(
     heldout = {"none": base.heldout_residual} | {k: f.heldout_residual for k, f in singles.items()}
     raw = bootstrap({k: v for k, v in heldout.items() if v is not None}, block,
                     concentration=CALIBRATION.concentration, tie_margin=CALIBRATION.tie_margin)  # fmt: skip
+    # an effect that does not pay for its parameters in-sample keeps no share of the held-out wins
+    raw = insample_supported(raw, {k: notes.get(k, {}).get("delta_bic") for k in singles})
     best_single = min(singles, key=lambda k: singles[k].heldout_rms) if singles else None
     kept = _agree(kept, raw, singles, engine, base, noise)
     final = kept[-1] if kept else base
