@@ -165,21 +165,19 @@ def bootstrap(residuals: dict[str, np.ndarray], block: np.ndarray, margin: float
 
 
 def insample_supported(
-    raw: dict[str, float], delta_bic: dict[str, float | None] | None, threshold: float | None = None
+    raw: dict[str, float], delta_bic: dict[str, float | None] | None, threshold: float = INSAMPLE_DELTA_BIC
 ) -> dict[str, float]:
     """``raw`` with the share of every effect whose single fit does not pay for its parameters on
     the data it was fitted to (its in-sample BIC change against ``none``, ``delta_bic``, at or above
-    ``threshold``; default ``INSAMPLE_DELTA_BIC``) given to ``none``. Physics that is there lowers
-    the in-sample error first: an effect that only wins on held-out blocks has taken up how the
-    model's own parameter corrections, re-fitted without a block, extrapolate to it (a clean
-    isometric test at two lengths: every hypothesis at the noise in-sample, the model alone 18 %
-    above it held-out, a drift's time columns taking that up). Idempotent; an effect without a
-    BIC change keeps its share."""
-    threshold = INSAMPLE_DELTA_BIC if threshold is None else threshold
-    if not delta_bic:
-        return dict(raw)
-    unpaid = [h for h in raw if h != "none" and delta_bic.get(h) is not None and delta_bic[h] >= threshold]
-    if not unpaid or not any(raw[h] > 0 for h in unpaid):
+    ``threshold``) given to ``none``. Physics that is there lowers the in-sample error first: an
+    effect that only wins on held-out blocks has taken up how the model's own parameter
+    corrections, re-fitted without a block, extrapolate to it (a clean isometric test at two
+    lengths: every hypothesis at the noise in-sample, the model alone 18 % above it held-out, a
+    drift's time columns taking that up). Idempotent; an effect without a BIC change keeps its
+    share."""
+    known = delta_bic or {}
+    unpaid = [h for h in raw if h != "none" and known.get(h) is not None and known[h] >= threshold]
+    if not unpaid:
         return dict(raw)
     out = {h: (0.0 if h in unpaid else p) for h, p in raw.items()}
     out["none"] = raw.get("none", 0.0) + sum(raw[h] for h in unpaid)
