@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import high_frequency_noise, segments
+from .effects import high_frequency_noise, play, segments
 
 SMOOTH_S = 0.5
 MAX_FOLDS = 5
@@ -326,16 +326,9 @@ def _ground(u: np.ndarray) -> np.ndarray:
     if span <= 20.0 * noise or span <= 0.0:
         return out
     width = max(PATH_STEP * span, 6.0 * noise)
-    y = float(u[0])
-    total = 0.0
-    for i, v in enumerate(u):
-        if v > y + width:
-            total += v - width - y
-            y = v - width
-        elif v < y - width:
-            total += y - width - v
-            y = v + width
-        out[i] = total
+    # the play operator's lagging end (it moves only once the signal leaves the band around it)
+    follower = u - width * play(u, width)
+    out[1:] = np.cumsum(np.abs(np.diff(follower)))
     return out
 
 
