@@ -40,6 +40,29 @@ def test_lag_nonuniform_sampling_matches_the_recursion(tau):
     np.testing.assert_allclose(E.lag(t, u, tau, starts), ref, rtol=0, atol=1e-10)
 
 
+@pytest.mark.parametrize("pause_s", [60.0, 1e5])
+def test_lag_across_a_pause_in_the_recording_stays_finite_and_exact(pause_s):
+    # a logger paused mid-test: one time step of 60 s (1200 tau) or a day. The recursion forgets
+    # everything across it (y = u after the pause); a block formula measured from before the
+    # pause underflowed exp(-dt / tau) to 0 and turned every later sample into NaN
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.005, 0.03, 800))
+    t[400:] += pause_s
+    u = np.cos(3 * t) + rng.normal(0, 0.05, len(t))
+    tau = 0.05
+    ref = np.empty_like(u)
+    y = u[0]
+    for k in range(len(t)):
+        if k:
+            a = math.exp(-(t[k] - t[k - 1]) / tau)
+            y = a * y + (1 - a) * u[k]
+        ref[k] = y
+    out = E.lag(t, u, tau)
+    assert np.all(np.isfinite(out))
+    assert out[400] == pytest.approx(u[400], abs=1e-12)
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
+
+
 def test_play_operator_saturates_after_twice_its_width_and_holds():
     # triangle 0 -> 1 -> 0 with width 0.1: z reaches 1 after 0.1 of travel, stays 1 while the
     # input turns, and reaches -1 after 0.2 of travel back

@@ -47,8 +47,10 @@ def lag(t: np.ndarray, u: np.ndarray, tau: float, starts=(0,)) -> np.ndarray:
     """First-order lag, exact for a held input (MuJoCo ``filterexact``): y_0 = u_0 at each start,
     y_k = a_k y_{k-1} + (1 - a_k) u_k with a_k = exp(-(t_k - t_{k-1}) / tau).
 
-    Uniform sampling runs as a linear filter; otherwise, within blocks spanning at most 500 tau,
-    y_k = A_k (y_b + sum_j (1 - a_j) u_j / A_j) with A_k = exp(-(t_k - t_b) / tau)."""
+    Uniform sampling runs as a linear filter; otherwise the step into each block is taken alone
+    (it may be a pause of any length in the recording) and, within the block, spanning at most
+    500 tau from its first sample b, y_k = A_k (y_b + sum_j (1 - a_j) u_j / A_j) with
+    A_k = exp(-(t_k - t_b) / tau)."""
     out = np.empty_like(u, dtype=float)
     for b, e in segments(np.asarray(starts), len(u)):
         tt, uu, yy = t[b:e], u[b:e], out[b:e]
@@ -57,16 +59,22 @@ def lag(t: np.ndarray, u: np.ndarray, tau: float, starts=(0,)) -> np.ndarray:
             a = math.exp(-float(dt.mean()) / tau)
             yy[:] = lfilter([1.0 - a], [1.0, -a], uu, zi=[a * uu[0]])[0]
             continue
-        y0 = float(uu[0])
-        yy[0] = y0
+        y = float(uu[0])
+        yy[0] = y
         k = 1
         while k < len(tt):
-            stop = max(int(np.searchsorted(tt, tt[k - 1] + 500.0 * tau, side="right")), k + 1)
-            s = slice(k, stop)
-            A = np.exp(-(tt[s] - tt[k - 1]) / tau)
-            a = np.exp(-np.diff(tt[k - 1 : stop]) / tau)
-            yy[s] = A * (y0 + np.cumsum((1.0 - a) * uu[s] / A))
-            y0 = float(yy[stop - 1])
+            # the step into the block by itself: measured from the block's previous sample, a
+            # pause over ~745 tau (a 40 s gap at tau 50 ms) underflows A to 0, and u / A to inf
+            a0 = math.exp(-float(tt[k] - tt[k - 1]) / tau)
+            y = a0 * y + (1.0 - a0) * float(uu[k])
+            yy[k] = y
+            stop = max(int(np.searchsorted(tt, tt[k] + 500.0 * tau, side="right")), k + 1)
+            if stop > k + 1:
+                s = slice(k + 1, stop)
+                A = np.exp(-(tt[s] - tt[k]) / tau)
+                a = np.exp(-np.diff(tt[k:stop]) / tau)
+                yy[s] = A * (y + np.cumsum((1.0 - a) * uu[s] / A))
+                y = float(yy[stop - 1])
             k = stop
     return out
 
