@@ -709,6 +709,57 @@ def test_a_stroke_before_a_long_hold_is_cut_as_finely_as_the_hold():
         assert gap <= 0.025, f"fold {k}: a held-out strain {gap:.3f} from any trained one"
 
 
+def _staircase_after_the_only_stroke(rest, rng):
+    """A blocked-force staircase as many labs run it: from the rest length, one stroke at zero
+    pressure to 1.4 x rest (5 mm/s), then nine pressures 60-500 kPa in shuffled order, each
+    held 4 s, then vented (breakpoints: time s, length m, pressure Pa)."""
+    L = 1.4 * rest
+    t, lengths, pressures = [0.0, 4.0], [rest, rest], [0.0, 0.0]
+    steps = [((L - rest) / 5e-3, 0.0), (3.0, 0.0)]
+    for p in rng.permutation(np.linspace(60e3, 500e3, 9)):
+        steps += [(0.5, p), (4.0, p)]
+    for dt, p in steps + [(0.5, 0.0), (4.0, 0.0)]:
+        t.append(t[-1] + dt)
+        lengths.append(L)
+        pressures.append(p)
+    return np.array(t), np.array(lengths), np.array(pressures)
+
+
+def test_the_only_stroke_of_a_test_is_held_out_in_pieces_every_fold_trains_around():
+    # before the staircase, the approach stroke is the test's only length change: held out whole,
+    # the stroke's strain range would be predicted from data that never left one length
+    from efam_mujoco.diagnose.segment import MAX_FOLDS
+
+    rest = 0.2
+    tb, Lb, Pb = _staircase_after_the_only_stroke(rest, np.random.default_rng(1))
+    t = np.arange(0.0, tb[-1], 0.01)
+    L, P = np.interp(t, tb, Lb), np.interp(t, tb, Pb)
+    labels = _labels(t, L, P, rest)
+    assert "alone covering part of the strain-pressure range" in labels.folds_rule
+    assert labels.n_folds == MAX_FOLDS
+    stroke = (t > 4.0) & (t < tb[2])
+    x = L / rest - 1
+    for k in range(labels.n_folds):
+        held = labels.fold == k
+        assert (held & stroke).any(), f"fold {k} holds none of the stroke"
+        gap = np.min(np.abs(x[held & stroke][:, None] - x[stroke & ~held][None, :]), axis=1).max()
+        assert gap <= 0.05 * np.ptp(x), f"fold {k}: a held-out strain {gap:.3f} from any trained one"
+
+
+@pytest.mark.parametrize("seed", [99966, 99967])
+def test_a_clean_pressure_staircase_after_its_only_stroke_raises_no_alarm(seed):
+    # no effect concealed. With the approach stroke held out whole, every hypothesis extrapolated
+    # the zero-pressure stiffness over 0.4 x rest from one length: held-out RMS 2.0 x the noise
+    # and `outside_library` at p 1.00 on both seeds
+    case = V.draw_case(seed, V.FAMILIES[seed % 4], "clean")
+    V.make(case)  # draws the case's noise level
+    nominal = load_muscle(case.base_name)
+    t, L, P = _staircase_after_the_only_stroke(nominal.rest_length_m, np.random.default_rng(seed))
+    d = diagnose([V.run_plan(case, t, L, P, 100.0, seed)], nominal, next_experiment=False)
+    assert d.verdict.answer == "none", (d.verdict.answer, d.verdict.probability)
+    assert d.heldout_rms_before_N < 1.2 * d.noise_N
+
+
 @pytest.mark.parametrize("seed", [99981, 99982])
 def test_clean_strokes_at_a_single_pressure_raise_no_alarm(seed):
     # a creep test (one stroke, then a long hold) and length steps at one pressure: no effect
