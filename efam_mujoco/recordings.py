@@ -173,6 +173,11 @@ def _decoded_lines(handle, label: str):
         if not raw:
             return
         number += 1
+        if b"\r" in raw.rstrip(b"\r\n"):
+            raise RecordingError(
+                f"{label}: line {number}: lines end in a bare carriage return (CR, old Mac line "
+                "endings); save the file with LF or CRLF line endings"
+            )
         if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
             raise RecordingError(
                 f"{label}: line {number}: longer than {MAX_LINE_BYTES} bytes (not a recording row)"
@@ -291,6 +296,11 @@ def read_csv(
 
 
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
+#: what a cell may hold: a plain ASCII decimal (``float`` alone also takes ``1_000``, which may
+#: be a thousands separator, and digits of other scripts); nan and inf are refused further on
+_NUMBER = re.compile(
+    r"^[+-]?(?:(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|nan|inf|infinity)$", re.IGNORECASE
+)
 
 
 def _skip(row: list[str]) -> bool:
@@ -308,6 +318,8 @@ def _parse_row(row, header, columns, order):
         if not text:
             return None, (name, "empty value")
         try:
+            if not _NUMBER.match(text):
+                raise ValueError(text)
             value = float(text)
         except ValueError:
             shown = text if len(text) <= 40 else text[:40] + "..."
@@ -388,6 +400,7 @@ CHECKS = {
     "pressure-negative": "gauge pressures well below zero",
     "force-range": "forces beyond what the muscle can produce",
     "force-dead": "a constant or dead force channel (load cell)",
+    "force-sign": "a force channel whose sign is the other way round (push vs pull)",
     "nothing-varies": "length and pressure both constant",
     "tension-only": "a tension-only muscle recorded pushing",
 }
@@ -401,6 +414,9 @@ REST_LENGTH_REACH = 0.5
 #: Median sample intervals a bench recorder makes (1 MHz .. one sample a minute).
 MIN_INTERVAL_S, MAX_INTERVAL_S = 1e-6, 60.0
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
+#: A recorded force whose correlation with the model's (same lengths and pressures) is below
+#: minus this has its sign the other way round (effects and zeros keep it well above zero).
+SIGN_CORRELATION = 0.5
 #: Gauge pressures below this are flagged (noise around zero passes).
 NEGATIVE_PRESSURE_PA = -10e3
 
@@ -533,10 +549,10 @@ def check_plausibility(
         Pc = np.clip(P[::step], 0.0, None)
         free = dataclasses.replace(muscle, tension_only=False) if muscle.tension_only else muscle
         with np.errstate(all="ignore"):  # what the muscle could push or pull, before any clamp
-            model = np.asarray(free.push(Pc, Lc), dtype=float)
+            aligned = np.asarray(free.push(Pc, Lc), dtype=float)
             span = np.linspace(float(np.min(Lc)), float(np.max(Lc)), 200)  # the recorded lengths only
             reach = np.asarray(free.push(float(np.max(Pc)), span), dtype=float)
-        model = model[np.isfinite(model)]
+        model = aligned[np.isfinite(aligned)]
         capacity = float(np.max(np.abs(reach[np.isfinite(reach)]), initial=0.0))
         limit = 3.0 * capacity + 50.0
         big = np.abs(F) > limit
@@ -561,6 +577,18 @@ def check_plausibility(
                 f"{src}: column '{fcol}': the force hardly changes (range {spread:.4g} N over {len(F)} samples) "
                 f"while the model expects a range of {expected:.4g} N: a dead or disconnected load cell?{hint}"
             )))  # fmt: skip
+        # the sign: where the model's push force rises, the recorded one must not fall
+        both = np.isfinite(aligned)
+        if expected > 5.0 and spread > 0.0 and np.count_nonzero(both) > 10:
+            with np.errstate(all="ignore"):
+                r = float(np.corrcoef(F[::step][both], aligned[both])[0, 1])
+            if r < -SIGN_CORRELATION:
+                findings.append(Finding("force-sign", (
+                    f"{src}: column '{fcol}': the recorded force falls where the model's rises (correlation "
+                    f"{r:.2f} over the recorded lengths and pressures): is its sign the other way round "
+                    "('force_<unit>' is positive when the muscle pushes its ends apart, 'tension_<unit>' when it "
+                    "pulls), or is --muscle not the muscle that was tested?"
+                )))  # fmt: skip
         if np.ptp(L) == 0.0 and np.ptp(P) == 0.0:
             findings.append(Finding("nothing-varies", (
                 f"{src}: columns '{lcol}' and '{pcol}' are both constant: nothing was tested"

@@ -145,6 +145,10 @@ PARSE_CASES = [
         r"both give the force|missing a time",
     ),
     ("two times", good_text().replace("length_m", "time_ms", 1), r"both give the time"),
+    # float() alone reads these as 10.5 and 12: a thousands separator or another script's digits
+    ("underscore in a number", row(6, force="1_0.5"), r"line 6, column 'force_N': not a number: '1_0.5'"),
+    ("non-ASCII digits", row(6, pressure="\u0661\u0662"), r"line 6, column 'pressure_kPa': not a number"),
+    ("CR line endings", good_text().replace("\n", "\r"), r"line 1: .*bare carriage return"),
 ]
 
 PLAUSIBILITY_CASES = [
@@ -188,6 +192,12 @@ PLAUSIBILITY_CASES = [
     ("vacuum pressures", replaced(2, np.linspace(-60, 400, N)), "pressure-negative", r"below zero"),
     ("nothing varies", replaced(2, 0.0), "pressure-deadband|force-dead|nothing-varies", ""),
     ("force sign flipped", scaled(3, -50.0), "force-range", r"beyond what the muscle can produce"),
+    (
+        "push force labelled tension",
+        good_text().replace("force_N", "tension_N", 1),
+        "force-sign",
+        r"column 'tension_N'.*sign the other way round",
+    ),
     ("time in ms labelled s", scaled(0, 1000.0), "time-unit", r"time_ms"),
     ("time in us labelled s", scaled(0, 1e6), "time-unit", r"sample interval"),
     (
@@ -226,6 +236,14 @@ def test_implausible_recording_is_an_error_naming_the_check(
                   r"rec\.csv", rf"\[({checks})\]", "--allow")  # fmt: skip
     if pattern:
         assert __import__("re").search(pattern, err), err
+
+
+def test_no_pressure_at_all_even_when_every_check_is_allowed_is_one_clear_error(tmp_path, capsys):
+    # every plausibility check waived: the re-fit itself must say why it cannot fit a stress law
+    # (it said only "no stress law could be fitted to the recordings", naming no file)
+    path = _write(tmp_path, replaced(2, 0.0))
+    run_bad(["diagnose", path.name, "--muscle", "FAM1", "--allow", *CHECKS], tmp_path, capsys,
+            r"rec\.csv: no stress law could be fitted", r"pressure 0 \.\. 0 kPa", r"never rises above zero")  # fmt: skip
 
 
 def test_tension_only_on_pushing_data(tmp_path, capsys):

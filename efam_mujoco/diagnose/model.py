@@ -137,10 +137,12 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
     noise = float(np.median([high_frequency_noise(r.force_N) for r in recordings]))
     results: dict[str, tuple[float, Muscle]] = {}
     choices: dict[str, _Choice] = {}
+    why: dict[str, str] = {}
     for law in laws:
         try:
             first = fit_law(start_muscle, recordings, law, fit_deadband=True, objective="lsq").muscle
-        except ValueError:
+        except ValueError as err:
+            why[law] = str(err)
             continue
         box = bounds(muscle, law, deadband_hi)
         fitted, _ = _refine(first, law, Ps, Ls, Fs, box)
@@ -148,7 +150,17 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
         results[law] = (_bic(rss, len(Fs), len(names(law))), fitted)
         choices[law] = _beside_zeros(fitted, law, Ps, Ls, Fs, box, rec, noise, muscle)
     if not results:
-        raise ValueError("no stress law could be fitted to the recordings")
+        sources = ", ".join(str(r.meta.get("source", "recording")) for r in recordings)
+        if float(np.max(P)) <= 0.0:
+            reasons = "the pressure never rises above zero, and the law is the muscle's response to it"
+        elif len(set(why.values())) == 1:
+            reasons = f"every law: {next(iter(why.values()))}"
+        else:
+            reasons = "; ".join(f"{law}: {text}" for law, text in why.items())
+        raise ValueError(
+            f"{sources}: no stress law could be fitted to these recordings ({len(F)} samples, pressure "
+            f"{float(np.min(P)) / 1e3:.4g} .. {float(np.max(P)) / 1e3:.4g} kPa): {reasons}"
+        )
     best = min(results, key=lambda law: results[law][0])
     # another law, fitted beside zeros, replaces the best plain law's choice only when it is
     # clearly better: its BIC lower by MIN_DELTA_BIC, the margin an effect must clear (the law
