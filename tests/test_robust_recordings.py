@@ -246,6 +246,29 @@ def test_no_pressure_at_all_even_when_every_check_is_allowed_is_one_clear_error(
             r"rec\.csv: no stress law could be fitted", r"pressure 0 \.\. 0 kPa", r"never rises above zero")  # fmt: skip
 
 
+def test_a_calibration_from_a_handful_of_rows_is_refused(tmp_path, capsys):
+    # three rows gave a muscle file without a word (and, on the way, a polynomial law with
+    # fewer samples than coefficients failed inside the solver)
+    path = _write(tmp_path, csv_text(good_rows()[200:203], HEADER))
+    run_bad(["calibrate", path.name, "--muscle", "FAM1", "--out", "m.json", "--allow", *CHECKS], tmp_path, capsys,
+            r"rec\.csv: too few samples to calibrate: 3")  # fmt: skip
+
+
+def test_blocked_force_left_at_one_pressure_level_is_refused():
+    # five rest-length points, the lowest rejected as an outlier: the four kept sit within 1.5 kPa,
+    # one level, from which a dead band and a slope were still fitted (dead band 0, theta 20.7 deg)
+    from efam_mujoco.calibrate.blocked import fit_blocked
+
+    P = np.array([161.514814, 205.14124, 206.588913, 205.830315, 206.557003]) * 1e3
+    F = np.array([69.36, 94.64, 95.54, 95.12, 95.04])
+    with pytest.raises(
+        ValueError, match=r"kept lie at 205.1 .. 206.6 kPa \(rejected as outliers: 161.5 kPa\)"
+    ):
+        fit_blocked(P, F)
+    fit = fit_blocked(P[:2] * np.array([0.5, 1.0]), F[:2])  # two clearly different pressures still fit
+    assert fit.slope_N_per_Pa > 0
+
+
 def test_tension_only_on_pushing_data(tmp_path, capsys):
     path = _write(tmp_path, good_text())
     for command in ("calibrate", "diagnose"):

@@ -78,6 +78,10 @@ def blocked_points(samples: Samples, rest_length_m: float) -> tuple[np.ndarray, 
     return samples.pressure_Pa[near], samples.tension_N[near]
 
 
+#: the points kept must span at least this share of the largest pressure (one level gives no line)
+MIN_PRESSURE_SPAN = 0.1
+
+
 def fit_blocked(pressure_Pa, tension_N, rest_diameter_m: float | None = None) -> BlockedForceFit:
     """Hinge fit with residual-based outlier rejection; braid angle from the slope if D is given."""
     P = np.asarray(pressure_Pa, dtype=float)
@@ -88,7 +92,16 @@ def fit_blocked(pressure_Pa, tension_N, rest_diameter_m: float | None = None) ->
             f"(got {len(P)} point(s)); record a stroke that starts at the resting length"
         )
     inlier = _reject_outliers(P, F)
-    deadband, slope = _hinge(P[inlier], F[inlier])
+    kept = P[inlier]
+    if np.ptp(kept) < MIN_PRESSURE_SPAN * float(np.max(np.abs(P))):
+        rejected = ", ".join(f"{p / 1e3:.4g}" for p in P[~inlier]) or "none"
+        raise ValueError(
+            f"blocked force: the {len(kept)} point(s) kept lie at {np.min(kept) / 1e3:.4g} .. "
+            f"{np.max(kept) / 1e3:.4g} kPa (rejected as outliers: {rejected} kPa), one pressure level: "
+            "a dead band and a slope need the force at the resting length at two or more clearly "
+            "different pressures"
+        )
+    deadband, slope = _hinge(kept, F[inlier])
     residual = F - slope * np.maximum(P - deadband, 0.0)
     fit = BlockedForceFit(
         deadband_Pa=deadband, slope_N_per_Pa=slope, pressure_Pa=P, tension_N=F, inlier=inlier,

@@ -86,10 +86,13 @@ def run(args) -> int:
         muscle = replace(muscle, tension_only=True)
     recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
     laws = LAW_NAMES if args.stress == "all" else (args.stress,)
-    cal = calibrate(
-        recordings, muscle, laws, estimate_theta=not args.keep_theta, fit_deadband=args.fit_deadband,
-        objective=args.objective, heldout=not args.no_heldout,
-    )  # fmt: skip
+    try:
+        cal = calibrate(
+            recordings, muscle, laws, estimate_theta=not args.keep_theta, fit_deadband=args.fit_deadband,
+            objective=args.objective, heldout=not args.no_heldout,
+        )  # fmt: skip
+    except ValueError as err:  # a fit that cannot be made from these data: say which data
+        raise ValueError(f"{', '.join(str(f) for f in args.files)}: {err}") from None
     samples = cal.problem.samples
     mode = (
         f"isobaric strokes at {len(samples.levels_Pa)} pressure levels"

@@ -112,6 +112,10 @@ def geometry_from_blocked(
     return blocked, base
 
 
+#: the fewest samples a calibration is made from (as for a diagnosis)
+MIN_SAMPLES = 50
+
+
 def calibrate(
     recordings: list[Recording],
     muscle: Muscle,
@@ -134,6 +138,11 @@ def calibrate(
     t0 = time.perf_counter()
     names = resolve_laws(laws)
     recordings = list(recordings)
+    total = sum(len(r) for r in recordings)
+    if total < MIN_SAMPLES:
+        # a law of four coefficients, the dead band and the braid angle from a handful of
+        # samples fit anything (three rows gave a muscle file without a word)
+        raise ValueError(f"too few samples to calibrate: {total} in all (at least {MIN_SAMPLES})")
     samples = pool(recordings)
     blocked, base = geometry_from_blocked(samples, muscle, estimate_theta)
     problem = Problem(base, recordings, n=n, samples=samples)

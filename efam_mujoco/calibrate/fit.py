@@ -302,7 +302,8 @@ class _LinearSolver:
             x = np.full(len(z), np.nan)
         if not (np.all(np.isfinite(x)) and np.all(x >= lo) and np.all(x <= hi)):
             x = lsq_linear(R, z, bounds=(lo, hi), method="bvls").x
-        coef = x / scale
+        # the solver meets its bounds to rounding (-6e-10 Pa on a bound of 0 with 3 samples)
+        coef = np.clip(x / scale, self.lo, self.hi)
         unstable = (
             self.law == "polynomial" and _quad_min(*coef[[0, 2, 3]], self.strain_range) < STABILITY_MARGIN_PA
         )
@@ -324,7 +325,7 @@ def _quad_min(E1, E3, E4, strain_range) -> float:
 def _stable_polynomial(R, z, scale, lo, hi, strain_range) -> np.ndarray:
     """min ||R x - z|| in bounds with E1 + 2 E3 e + 3 E4 e^2 >= margin over the strain range."""
     grid = list(np.linspace(*strain_range, 41))
-    k = len(z)
+    k = R.shape[1]  # the coefficients (fewer samples than coefficients give fewer rows in R)
 
     def rows_for(strains):
         G = np.zeros((len(strains), k))
@@ -350,7 +351,7 @@ def _stable_polynomial(R, z, scale, lo, hi, strain_range) -> np.ndarray:
             options={"maxiter": 200, "ftol": 1e-12},
         )
         x = result.x
-        coef = x / scale
+        coef = np.clip(x / scale, lo / scale, hi / scale)
         if _quad_min(coef[0], coef[2], coef[3], strain_range) >= STABILITY_MARGIN_PA:
             return coef
         grid.append(-coef[2] / (3 * coef[3]))  # cut at the slope's minimum and solve again
