@@ -651,7 +651,7 @@ def _noise_free(case: Case, recording: Recording) -> Recording:
 
 
 def identifiable(
-    case: Case, recording: Recording, nominal, share: float = 0.25, more: tuple[Recording, ...] = ()
+    case: Case, recording: Recording | None, nominal, share: float = 0.25, more: tuple[Recording, ...] = ()
 ) -> tuple[bool, float]:
     """Whether the concealed effects show in this recording at all: the noise-free truth force is
     fitted by the model's own parameters alone (``model.refit``, the re-fit the diagnosis starts
@@ -659,10 +659,11 @@ def identifiable(
     x the force noise. An effect the model's own parameters reproduce is parameter error by
     design; for scoring, its right answer is ``none``. ``more``: further noise-free recordings of
     the same truth diagnosed with it (``run_plan``'s ``meta["noise_free"]``): a next experiment
-    can make an effect show that the first recording hid. Returns (identifiable, RMS left in N)."""
+    can make an effect show that the first recording hid; with ``recording`` None, those alone
+    (a test of another protocol run by ``run_plan``). Returns (identifiable, RMS left in N)."""
     from .model import refit
 
-    truths = [_noise_free(case, recording), *more]
+    truths = [*([] if recording is None else [_noise_free(case, recording)]), *more]
     fitted = refit(nominal, truths)
     residual = np.concatenate([fitted.muscle.push(r.pressure_Pa, r.length_m) - r.force_N for r in truths])
     left = float(np.sqrt(np.mean(residual**2)))
