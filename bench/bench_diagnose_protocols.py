@@ -289,14 +289,25 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     cases = plan(args.per_protocol, args.seed)
     start = time.perf_counter()
+    rows: list[dict] = []
+
+    def keep(row: dict) -> None:
+        rows.append(row)
+        mark = "ok " if row["correct"] else "BAD"
+        print(f"[{len(rows):3d}/{len(cases)}] {mark} {row['protocol']:16s} {row['kind']:6s} "
+              f"{'/'.join(row['truth']) or 'none':20s} -> {row['answer']:16s} p={row['probability']:.2f}"
+              f"{' conf' if row['confident'] else ''} {row['samples']} smp {row['seconds']:.1f} s", flush=True)  # fmt: skip
+
     if args.jobs > 1:
         from multiprocessing import Pool
 
         with Pool(args.jobs, initializer=pin_one_core) as pool:
-            rows = list(progress(pool.imap_unordered(run_case, cases), "diagnose", len(cases)))
+            for row in progress(pool.imap_unordered(run_case, cases), "diagnose", len(cases)):
+                keep(row)
     else:
         pin_one_core()
-        rows = [run_case(c) for c in progress(cases, "diagnose", len(cases))]
+        for case in progress(cases, "diagnose", len(cases)):
+            keep(run_case(case))
     rows.sort(key=lambda r: r["seed"])
     summary = summarise(rows)
     print(
