@@ -65,6 +65,16 @@ class Program:
         """Move to length ``L`` at ``speed`` m/s."""
         return self.go(abs(L - self.L[-1]) / speed, L=L)
 
+    def strokes_at(self, pressures, a: float, b: float, speed: float, cycles: int, settle: float,
+                   dwell: float) -> Program:  # fmt: skip
+        """At each pressure in turn (stepped to, then held ``settle`` s), ``cycles`` strokes from
+        length ``a`` to ``b`` and back at ``speed`` m/s, held ``dwell`` s at either end."""
+        for p in pressures:
+            self.go(0, P=p).go(settle)
+            for _ in range(cycles):
+                self.stroke(b, speed).go(dwell).stroke(a, speed).go(dwell)
+        return self
+
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Breakpoint times (s), lengths (m) and pressures (Pa)."""
         return np.array(self.t), np.array(self.L), np.array(self.P)
@@ -139,11 +149,7 @@ def five_seconds(rest, top, db, rng):
 def slow_and_long(rest, top, db, rng):
     """About 15 minutes of slow strokes (3 mm/s) at three pressures, twice over; 25 Hz."""
     e = rest + 0.8 * (top - rest)
-    pr = Program(rest).go(5)
-    for p in (206.8e3, 413.7e3, 310.3e3) * 2:
-        pr.go(0, P=p).go(5)
-        for _ in range(3):
-            pr.stroke(e, 3e-3).go(3).stroke(rest, 3e-3).go(3)
+    pr = Program(rest).go(5).strokes_at((206.8e3, 413.7e3, 310.3e3) * 2, rest, e, 3e-3, 3, 5, 3)
     return pr.go(0, P=0.0).go(5), 25.0
 
 
@@ -161,11 +167,7 @@ def narrow(rest, top, db, rng):
     """Strokes over 5 % of the range (about 30 % pre-strain) at three pressures; 100 Hz."""
     a = rest + 0.3 * (top - rest)
     b = a + 0.05 * (top - rest)
-    pr = Program(rest).go(4).stroke(a, 5e-3)
-    for p in (172.4e3, 413.7e3, 275.8e3):
-        pr.go(0, P=p).go(4)
-        for _ in range(3):
-            pr.stroke(b, 1e-3).go(2).stroke(a, 1e-3).go(2)
+    pr = Program(rest).go(4).stroke(a, 5e-3).strokes_at((172.4e3, 413.7e3, 275.8e3), a, b, 1e-3, 3, 4, 2)
     return pr.go(0, P=0.0).go(4), 100.0
 
 
@@ -185,31 +187,22 @@ def near_dead_band(rest, top, db, rng):
 def one_level(rest, top, db, rng):
     """Strokes at one pressure only: two at 4 mm/s, one at 12 mm/s; 100 Hz."""
     e = rest + 0.85 * (top - rest)
-    pr = Program(rest).go(4).go(0, P=310.3e3).go(5)
-    for v in (4e-3, 4e-3, 12e-3):
-        pr.stroke(e, v).go(3).stroke(rest, v).go(3)
+    pr = Program(rest).go(4).strokes_at((310.3e3,), rest, e, 4e-3, 2, 5, 3)
+    pr.stroke(e, 12e-3).go(3).stroke(rest, 12e-3).go(3)
     return pr.go(0, P=0.0).go(4), 100.0
 
 
 def fast(rest, top, db, rng):
     """Six fast strokes (50 mm/s) at 250 and at 450 kPa; 200 Hz."""
     a, e = rest + 0.05 * (top - rest), rest + 0.8 * (top - rest)
-    pr = Program(rest).go(3).stroke(a, 5e-3)
-    for p in (250e3, 450e3):
-        pr.go(0, P=p).go(3)
-        for _ in range(6):
-            pr.stroke(e, 50e-3).go(1).stroke(a, 50e-3).go(1)
+    pr = Program(rest).go(3).stroke(a, 5e-3).strokes_at((250e3, 450e3), a, e, 50e-3, 6, 3, 1)
     return pr.go(0, P=0.0).go(3), 200.0
 
 
 def high_strain(rest, top, db, rng):
     """Strokes over the top 15 % of the range only, at three pressures; 100 Hz."""
     a = rest + 0.85 * (top - rest)
-    pr = Program(rest).go(3).stroke(a, 5e-3)
-    for p in (206.8e3, 482.6e3, 310.3e3):
-        pr.go(0, P=p).go(3)
-        for _ in range(3):
-            pr.stroke(top, 3e-3).go(2).stroke(a, 3e-3).go(2)
+    pr = Program(rest).go(3).stroke(a, 5e-3).strokes_at((206.8e3, 482.6e3, 310.3e3), a, top, 3e-3, 3, 3, 2)
     return pr.go(0, P=0.0).go(3), 100.0
 
 
