@@ -51,6 +51,7 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 
 from .effects import high_frequency_noise, play, segments
 
@@ -384,18 +385,12 @@ def _alone(units, x, P) -> list[bool]:
         return np.minimum(((u - u.min()) / span * COVER_CELLS).astype(int), COVER_CELLS - 1)
 
     cell = cells(x) * COVER_CELLS + cells(P)
-    grid = (COVER_CELLS, COVER_CELLS)
     near = []
     for s0, s1, _ in units:
-        seen = np.zeros(grid, dtype=bool)
+        seen = np.zeros((COVER_CELLS, COVER_CELLS), dtype=bool)
         seen.flat[np.unique(cell[s0:s1])] = True
         # a cell and its eight neighbours
-        padded = np.pad(seen, 1)
-        grown = np.zeros(grid, dtype=bool)
-        for di in (0, 1, 2):
-            for dj in (0, 1, 2):
-                grown |= padded[di : di + COVER_CELLS, dj : dj + COVER_CELLS]
-        near.append(grown.ravel().astype(int))
+        near.append(binary_dilation(seen, structure=np.ones((3, 3), dtype=bool)).ravel().astype(int))
     visits = np.sum(near, axis=0) if near else np.zeros(COVER_CELLS**2, dtype=int)
     out = []
     for (s0, s1, _), own in zip(units, near):
@@ -410,6 +405,7 @@ def _folds(half_info, n, P, x) -> tuple[np.ndarray, int, str]:
     units = [(s0, s1, d) for s0, s1, d, _ in half_info]
     pieces = 1
     alone: list[tuple[int, int, int]] = []
+    n_alone = 0
     if len(units) < MIN_UNITS:
         # cut into a few contiguous blocks, the one block that holds the low end of a single
         # pressure ramp (the dead band) would be held out with nothing like it left to train on,
@@ -452,14 +448,8 @@ def _folds(half_info, n, P, x) -> tuple[np.ndarray, int, str]:
             range(len(units)), key=lambda i: (count[kinds[i]], kinds[i][1], kinds[i][0], units[i][0])
         )
     fold = np.zeros(n, dtype=int)
-    dealt = 0
-    for i in order:
-        s0, s1, _ = units[i]
+    for dealt, (s0, s1, _) in enumerate([units[i] for i in order] + alone):
         fold[s0:s1] = dealt % k
-        dealt += 1
-    for s0, s1, _ in alone:
-        fold[s0:s1] = dealt % k
-        dealt += 1
     if pieces == 1:
         rule = f"held out: whole half-cycles ({len(units)}), dealt round-robin into {k} folds"
         if alone:
