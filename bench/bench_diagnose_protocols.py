@@ -231,7 +231,7 @@ def run_case(spec: tuple[int, str, str]) -> dict:
     V.make(case)  # draws the case's noise level and effect parameters, as run_plan replays them
     nominal = load_muscle(case.base_name)
     rest = case.muscle.rest_length_m
-    top = min(1.98 * rest, 0.95 * case.muscle.max_length_m)
+    _, top = V._stroke_range(case.muscle, None)  # the benchmark's own stroke range
     program, hz = PROTOCOLS[name](rest, top, case.muscle.deadband_Pa, np.random.default_rng([seed, 7]))
     recording = V.run_plan(case, *program.arrays(), hz, seed)
     shows, left = (
