@@ -232,13 +232,14 @@ def read_csv(
     with handle:
         reader = csv.reader(_decoded_lines(handle, label))
         while True:
+            first = reader.line_num + 1  # a quoted field can carry a row over several lines
             try:
                 row = next(reader)
             except StopIteration:
                 break
             except csv.Error as err:
-                raise RecordingError(f"{label}: line {reader.line_num}: not a CSV row ({err})") from None
-            line = reader.line_num
+                raise RecordingError(f"{label}: line {first}: not a CSV row ({err})") from None
+            line = first
             if _skip(row):
                 continue
             if columns is None:
@@ -250,6 +251,8 @@ def read_csv(
                 problem = (columns["time"][1], f"{what}: {parsed[0]:g} s after {last_time:g} s")
             if problem is not None:
                 column, reason = problem
+                if reader.line_num > first:  # an unclosed quote swallowed the lines after it
+                    reason += f" (a quote on line {first} runs on to line {reader.line_num})"
                 if on_bad_rows == "error":
                     where = f"line {line}" + (f", column '{column}'" if column else "")
                     hint = " (--on-bad-rows drop, or on_bad_rows='drop' in Python, drops such rows)"
@@ -395,6 +398,7 @@ CHECKS = {
     "pressure-range": "pressures above the rated pressure",
     "pressure-deadband": "pressures that never exceed the muscle's dead band",
     "pressure-negative": "gauge pressures well below zero",
+    "pressure-absolute": "absolute pressures in a gauge column (every value an atmosphere too high)",
     "force-range": "forces beyond what the muscle can produce",
     "force-dead": "a constant or dead force channel (load cell)",
     "force-sign": "a force channel whose sign is the other way round (push vs pull)",
@@ -416,6 +420,11 @@ TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
 SIGN_CORRELATION = 0.5
 #: Gauge pressures below this are flagged (noise around zero passes).
 NEGATIVE_PRESSURE_PA = -10e3
+#: One standard atmosphere (Pa): what an absolute pressure reads above the gauge pressure.
+ATMOSPHERE_PA = 101325.0
+#: A recording never below an atmosphere less this whose forces the model reproduces with less
+#: than this share of the error once an atmosphere is taken off is flagged as absolute pressure.
+ABSOLUTE_SLACK_PA, ABSOLUTE_ERROR_SHARE = 5e3, 0.5
 
 
 @dataclass(frozen=True)
@@ -574,6 +583,20 @@ def check_plausibility(
                 f"{src}: column '{fcol}': the force hardly changes (range {spread:.4g} N over {len(F)} samples) "
                 f"while the model expects a range of {expected:.4g} N: a dead or disconnected load cell?{hint}"
             )))  # fmt: skip
+        # absolute pressure under a gauge header: never below an atmosphere, and the forces fit the
+        # model far better an atmosphere lower (a test held above 100 kPa gauge fits as recorded)
+        if float(np.min(P)) >= ATMOSPHERE_PA - ABSOLUTE_SLACK_PA and expected > 5.0 and model.size == len(Pc):
+            with np.errstate(all="ignore"):
+                lowered = np.asarray(free.push(np.clip(Pc - ATMOSPHERE_PA, 0.0, None), Lc), dtype=float)
+            error_as_read = float(np.sqrt(np.mean((F[::step] - aligned) ** 2)))
+            error_lowered = float(np.sqrt(np.mean((F[::step] - lowered) ** 2)))
+            if error_lowered < ABSOLUTE_ERROR_SHARE * error_as_read:
+                findings.append(Finding("pressure-absolute", (
+                    f"{src}: column '{pcol}': the pressure never falls below {float(np.min(P)) / 1e3:.4g} kPa, and "
+                    f"the forces fit the muscle's model with {error_lowered:.3g} N RMS an atmosphere "
+                    f"({ATMOSPHERE_PA / 1e3:.4g} kPa) lower against {error_as_read:.3g} N as recorded: is it an "
+                    "absolute pressure? The column must hold gauge pressure (subtract the atmosphere)"
+                )))  # fmt: skip
         # the sign: where the model's push force rises, the recorded one must not fall
         both = np.isfinite(aligned)
         if expected > 5.0 and spread > 0.0 and np.count_nonzero(both) > 10:

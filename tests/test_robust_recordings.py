@@ -126,7 +126,8 @@ PARSE_CASES = [
     ),
     ("UTF-16 file", good_text().encode("utf-16"), r"line 1.*not UTF-8"),
     ("binary garbage", bytes(range(256)) * 4, r"not UTF-8|NUL|not a CSV|unknown column"),
-    ("unclosed quote", row(6, length='"0.17'), r"line \d+"),
+    # the quote swallows the rows after it: the error names the line it opened on
+    ("unclosed quote", row(6, length='"0.17'), r"line 6\b.*a quote on line 6 runs on to line \d+"),
     ("semicolon separated", good_text().replace(",", ";"), r"line 1, unknown column.*'semicolon'-separated"),
     ("tab separated", good_text().replace(",", "\t"), r"line 1, unknown column.*'tab'-separated"),
     (
@@ -190,6 +191,12 @@ PLAUSIBILITY_CASES = [
     ("lengths too short", replaced(1, np.linspace(0.05, 0.01, N)), "length-range|length-unit", ""),
     ("far from rest", replaced(1, np.linspace(0.4, 0.7, N)), "rest-length|length-range", r"resting length"),
     ("vacuum pressures", replaced(2, np.linspace(-60, 400, N)), "pressure-negative", r"below zero"),
+    (
+        "absolute pressure under a gauge header",
+        replaced(2, good_rows()[:, 2] + 101.325),
+        "pressure-absolute",
+        r"column 'pressure_kPa'.*an atmosphere.*absolute pressure",
+    ),
     ("nothing varies", replaced(2, 0.0), "pressure-deadband|force-dead|nothing-varies", ""),
     ("force sign flipped", scaled(3, -50.0), "force-range", r"beyond what the muscle can produce"),
     (
@@ -236,6 +243,25 @@ def test_implausible_recording_is_an_error_naming_the_check(
                   r"rec\.csv", rf"\[({checks})\]", "--allow")  # fmt: skip
     if pattern:
         assert __import__("re").search(pattern, err), err
+
+
+def test_a_test_held_above_an_atmosphere_is_not_taken_for_absolute_pressure():
+    # the paper's strokes never fall below 103 kPa gauge: as recorded they fit the model, an
+    # atmosphere lower they do not, so the absolute-pressure check stays silent; a file shifted up
+    # by an atmosphere is caught, and one shifted by 30 kPa (a regulator offset, not a unit) is not
+    from efam_mujoco.recordings import Recording
+
+    muscle = load_muscle("FAM1")
+    rows = good_rows()
+
+    def findings(kPa):
+        rec = Recording(rows[:, 0], rows[:, 1], rows[:, 2] * 1e3 + kPa * 1e3, rows[:, 3], {"source": "r.csv"})
+        return {f.check for f in check_plausibility([rec], muscle)}
+
+    assert rows[:, 2].min() > 100.0
+    assert "pressure-absolute" not in findings(0.0)
+    assert "pressure-absolute" in findings(101.325)
+    assert "pressure-absolute" not in findings(30.0)
 
 
 def test_no_pressure_at_all_even_when_every_check_is_allowed_is_one_clear_error(tmp_path, capsys):

@@ -6,6 +6,8 @@ would remove is parameter error, not missing physics. So the diagnosis first re-
 1. every stress law from ``calibrate.fit_law`` (dead band included) at the given geometry;
 2. each law's fit refined together with the geometry (braid angle, resting diameter, bladder
    volume, dead band, law coefficients) by bounded non-linear least squares on a thinned sample;
+   the preset's own law is refined from the preset as well, and the better of the two kept
+   (``fit_law``'s start can settle in another minimum);
 3. the law with the smallest BIC is the best plain law;
 4. each law is refined once more with one load-cell zero per recording as a nuisance, and once
    without (the same start and budget); the zeros are kept when they lower that law's BIC (each
@@ -147,6 +149,14 @@ def refit(muscle: Muscle, recordings: list[Recording], laws=LAW_NAMES) -> Refit:
         box = bounds(muscle, law, deadband_hi)
         fitted, _ = _refine(first, law, Ps, Ls, Fs, box)
         rss = float(np.sum((fitted.push(Ps, Ls) - Fs) ** 2))
+        if law == muscle.stress.name:
+            # the preset is a start too: fit_law's own start can settle in another minimum (a
+            # clean test of pressure ramps and strokes: 1.00 N RMS from it, 0.54 N from the
+            # preset, the truth's own 0.54 N), and the muscle tested is near its preset
+            again, _ = _refine(start_muscle, law, Ps, Ls, Fs, box)
+            rss_again = float(np.sum((again.push(Ps, Ls) - Fs) ** 2))
+            if rss_again < rss:
+                fitted, rss = again, rss_again
         results[law] = (_bic(rss, len(Fs), len(names(law))), fitted)
         choices[law] = _beside_zeros(fitted, law, Ps, Ls, Fs, box, rec, noise, muscle)
     if not results:
