@@ -543,7 +543,8 @@ def check_plausibility(
                 f"({top / 1e3:.4g} kPa <= {muscle.deadband_Pa / 1e3:.4g} kPa), so the muscle is never "
                 f"actuated{hint}"
             )))  # fmt: skip
-        if float(np.min(P)) < NEGATIVE_PRESSURE_PA:
+        lowest = float(np.min(P))
+        if lowest < NEGATIVE_PRESSURE_PA:
             i = int(np.argmin(P))
             findings.append(Finding("pressure-negative", (
                 f"{src}: {_line(rec, i)}, column '{pcol}': gauge pressure {P[i] / 1e3:.4g} kPa is well below "
@@ -553,6 +554,7 @@ def check_plausibility(
         step = max(1, len(rec) // 4000)
         Lc = np.clip(L[::step], lo, hi)
         Pc = np.clip(P[::step], 0.0, None)
+        Fc = F[::step]
         free = dataclasses.replace(muscle, tension_only=False) if muscle.tension_only else muscle
         with np.errstate(all="ignore"):  # what the muscle could push or pull, before any clamp
             aligned = np.asarray(free.push(Pc, Lc), dtype=float)
@@ -585,14 +587,14 @@ def check_plausibility(
             )))  # fmt: skip
         # absolute pressure under a gauge header: never below an atmosphere, and the forces fit the
         # model far better an atmosphere lower (a test held above 100 kPa gauge fits as recorded)
-        if float(np.min(P)) >= ATMOSPHERE_PA - ABSOLUTE_SLACK_PA and expected > 5.0 and model.size == len(Pc):
+        if lowest >= ATMOSPHERE_PA - ABSOLUTE_SLACK_PA and expected > 5.0 and model.size == len(Pc):
             with np.errstate(all="ignore"):
                 lowered = np.asarray(free.push(np.clip(Pc - ATMOSPHERE_PA, 0.0, None), Lc), dtype=float)
-            error_as_read = float(np.sqrt(np.mean((F[::step] - aligned) ** 2)))
-            error_lowered = float(np.sqrt(np.mean((F[::step] - lowered) ** 2)))
+            error_as_read = float(np.sqrt(np.mean((Fc - aligned) ** 2)))
+            error_lowered = float(np.sqrt(np.mean((Fc - lowered) ** 2)))
             if error_lowered < ABSOLUTE_ERROR_SHARE * error_as_read:
                 findings.append(Finding("pressure-absolute", (
-                    f"{src}: column '{pcol}': the pressure never falls below {float(np.min(P)) / 1e3:.4g} kPa, and "
+                    f"{src}: column '{pcol}': the pressure never falls below {lowest / 1e3:.4g} kPa, and "
                     f"the forces fit the muscle's model with {error_lowered:.3g} N RMS an atmosphere "
                     f"({ATMOSPHERE_PA / 1e3:.4g} kPa) lower against {error_as_read:.3g} N as recorded: is it an "
                     "absolute pressure? The column must hold gauge pressure (subtract the atmosphere)"
@@ -601,7 +603,7 @@ def check_plausibility(
         both = np.isfinite(aligned)
         if expected > 5.0 and spread > 0.0 and np.count_nonzero(both) > 10:
             with np.errstate(all="ignore"):
-                r = float(np.corrcoef(F[::step][both], aligned[both])[0, 1])
+                r = float(np.corrcoef(Fc[both], aligned[both])[0, 1])
             if r < -SIGN_CORRELATION:
                 findings.append(Finding("force-sign", (
                     f"{src}: column '{fcol}': the recorded force falls where the model's rises (correlation "
@@ -654,6 +656,10 @@ def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str
 #: Samples that go into a fit or a diagnosis at most (``--max-samples``): above it the
 #: recordings are decimated, so memory and time stay bounded whatever the file's length.
 DEFAULT_MAX_SAMPLES = 100_000
+#: The fewest samples a fit is made from: a diagnosis from each recording, a calibration from
+#: all of them together (a law of four coefficients, the dead band and the braid angle fit
+#: anything from fewer).
+MIN_SAMPLES = 50
 
 
 def decimate(recordings, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[list[Recording], str]:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..muscle import Muscle, MuscleError
 from ..musclefile import save_muscle
-from ..recordings import Recording
+from ..recordings import MIN_SAMPLES, Recording
 from ..stress import LAW_NAMES, LAWS, StressLaw
 from .blocked import BlockedForceFit, blocked_points, fit_blocked
 from .data import Samples, pool
@@ -112,10 +112,6 @@ def geometry_from_blocked(
     return blocked, base
 
 
-#: the fewest samples a calibration is made from (as for a diagnosis)
-MIN_SAMPLES = 50
-
-
 def calibrate(
     recordings: list[Recording],
     muscle: Muscle,
@@ -140,8 +136,7 @@ def calibrate(
     recordings = list(recordings)
     total = sum(len(r) for r in recordings)
     if total < MIN_SAMPLES:
-        # a law of four coefficients, the dead band and the braid angle from a handful of
-        # samples fit anything (three rows gave a muscle file without a word)
+        # three rows gave a muscle file without a word
         raise ValueError(f"too few samples to calibrate: {total} in all (at least {MIN_SAMPLES})")
     samples = pool(recordings)
     blocked, base = geometry_from_blocked(samples, muscle, estimate_theta)

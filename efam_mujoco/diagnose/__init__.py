@@ -26,7 +26,7 @@ from functools import partial
 import numpy as np
 
 from ..muscle import Muscle
-from ..recordings import Recording
+from ..recordings import MIN_SAMPLES, Recording
 from .confidence import (
     CALIBRATION,
     OUTSIDE,
@@ -189,7 +189,7 @@ def diagnose(
     if not recordings:
         raise ValueError("diagnose: no recordings")
     for r in recordings:
-        if len(r) < 50:
+        if len(r) < MIN_SAMPLES:
             raise ValueError(f"{r.meta.get('source', 'recording')}: too few samples to diagnose ({len(r)})")
     for name in candidates:
         get(name)
