@@ -222,6 +222,37 @@ def test_maxwell_branch_relaxes_exponentially_and_friction_sticks_during_a_hold(
     np.testing.assert_allclose(dF[hold], expected * np.exp(-0.3 * (t[hold] - t[hold[0]])), rtol=1e-9)
 
 
+def test_bladder_branch_relaxes_a_pressure_step_at_a_fixed_length():
+    # isometric: the strain branch sees nothing, the bladder branch takes g of the change of the
+    # bladder's share of Eq. 2 (the tension less its pressure term, written out here from the
+    # paper) and lets it decay as exp(-t/tau)
+    import math
+
+    muscle = load_muscle("FAM1")
+    t = np.arange(0.0, 10.0, 0.01)
+    L = np.full(len(t), 1.3 * muscle.rest_length_m)
+    P = np.where(t < 2.0, 150e3, 350e3)
+    recording = Recording(t, L, P, np.zeros(len(t)))
+    base = muscle.push(P, L)
+    visco = dict(k0_N=300.0, k1_N_per_MPa=100.0, g_bladder=0.25, tau_s=1.5)
+    dF = rig.replay(recording, muscle, [("viscoelasticity", visco)]) - base
+
+    def bladder_push(p):
+        pressure_term = (
+            (p - muscle.deadband_Pa)
+            / (4 * math.pi * muscle.turns**2)
+            * (3 * L[0] ** 2 - muscle.thread_length_m**2)
+        )
+        return -(float(muscle.tension(p, L[0])) - pressure_term)
+
+    np.testing.assert_allclose(dF[t < 2.0], 0.0, atol=1e-9)
+    hold = np.flatnonzero(t >= 2.0)
+    jump = 0.25 * (bladder_push(350e3) - bladder_push(150e3))
+    assert abs(jump) > 1.0  # the step changes the bladder's force by newtons
+    expected = jump * np.exp(-(t[hold] - t[hold[0] - 1]) / 1.5)
+    np.testing.assert_allclose(dF[hold], expected, rtol=1e-9)
+
+
 # ------------------------------------------------------- the state advances once per step
 STATEFUL = [(k, VALUES[k]) for k in ("friction", "viscoelasticity", "softening", "drift", "pressure_lag")]
 

@@ -106,14 +106,14 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.941  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 6.322
-    c: float = -5.906
+    a: float = -3.413  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 6.664
+    c: float = -4.183
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = 2.089  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -21.477
-    cn: float = -27.625
-    dn: float = -2.004  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = 2.136  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -22.216
+    cn: float = -30.300
+    dn: float = -1.534  # weight of the best effect's paired separation from none (``best_effect_z``)
 
 
 CALIBRATION = Calibration()

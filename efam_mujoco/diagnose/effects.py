@@ -533,34 +533,53 @@ class Friction(Effect):
 
 
 class Viscoelasticity(Effect):
-    """Viscoelasticity: one Maxwell branch, a stiffness that grows with pressure acting on x minus its lagged value."""
+    """Viscoelasticity: Maxwell branches of one relaxation time. One on the strain (a stiffness
+    that grows with pressure acting on x minus its lagged value); one on the bladder's own force,
+    Fung's quasi-linear form (the share g of each change of the elastic force relaxes), which a
+    pressure change moves at a fixed length as well: without it an isometric test's relaxation
+    had no viscoelastic term to take it (a Zener solid on isometric ramps was answered
+    `friction`), only friction's relaxing stuck force, a drift or a pressure lag."""
 
     def __init__(self):
         super().__init__(
             name="viscoelasticity",
-            summary="rate-dependent stiffness that relaxes during holds (one Maxwell branch)",
-            equation="dF = -(k0 + k1 P_MPa) (x - w),  w = lag(x, tau)",
+            summary="rate-dependent stiffness that relaxes during holds (Maxwell branches on the strain and the bladder)",
+            equation="dF = -(k0 + k1 P_MPa) (x - w) + g (F_b - lag(F_b, tau)),  w = lag(x, tau)",
             params=(
                 Param("k0_N", 0.0, 5000.0, meaning="Maxwell branch stiffness per unit strain"),
                 Param("k1_N_per_MPa", 0.0, 10000.0, meaning="its growth with pressure"),
+                Param(
+                    "g_bladder",
+                    0.0,
+                    1.0,
+                    meaning="share of a change of the bladder's force that relaxes (at any length)",
+                    default=0.0,
+                ),
                 Param("tau_s", 0.1, 500.0, True, (0.5, 1.5, 4.0, 10.0, 25.0, 60.0, 150.0), "relaxation time"),
             ),
-            state=("w",),
-            plugin="efam.muscle keys viscoelasticity.*; 1 lag state on the strain",
+            state=("w", "b"),
+            plugin="efam.muscle keys viscoelasticity.*; lag states on the strain and on the bladder's force",
             signature="hysteresis that grows with the rate and relaxes during holds",
         )
 
     def _design(self, ctx, shape):
-        d = ctx.x - lag(ctx.t, ctx.x, shape["tau_s"], ctx.starts)
-        return np.zeros(ctx.n), _gate(ctx, -np.column_stack([d, ctx.P_MPa * d]))
+        tau = shape["tau_s"]
+        d = ctx.x - lag(ctx.t, ctx.x, tau, ctx.starts)
+        bladder = ctx.bladder_push()
+        db = bladder - lag(ctx.t, bladder, tau, ctx.starts)
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([-d, -ctx.P_MPa * d, db]))
 
     def step(self, v, state, s: Sample) -> float:
-        """One sample of the Maxwell branch; see :class:`Effect.step`."""
+        """One sample of the Maxwell branches; see :class:`Effect.step`."""
+        bladder = -float(bladder_tension(s.muscle, s.P, s.L))
         if s.first:
-            state[0] = s.x
+            state[0], state[1] = s.x, bladder
         else:
-            state[0] += (1.0 - math.exp(-s.dt / v["tau_s"])) * (s.x - state[0])
+            a = 1.0 - math.exp(-s.dt / v["tau_s"])
+            state[0] += a * (s.x - state[0])
+            state[1] += a * (bladder - state[1])
         force = -(v["k0_N"] + v["k1_N_per_MPa"] * s.P / 1e6) * (s.x - state[0])
+        force += v.get("g_bladder", 0.0) * (bladder - state[1])
         return force if s.engaged else 0.0
 
 

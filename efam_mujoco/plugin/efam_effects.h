@@ -74,7 +74,10 @@ static const EffectSpec kEffects[NEFFECT] = {
       {"slip_kPa", 0.0, 1e4},
       {"relax_per_s", 0.0, 10.0, 1, 0.0}},
      1},
-    {"viscoelasticity", 3, {{"k0_N", 0.0, 5000.0}, {"k1_N_per_MPa", 0.0, 10000.0}, {"tau_s", 0.1, 500.0}}, 1},
+    {"viscoelasticity",
+     4,
+     {{"k0_N", 0.0, 5000.0}, {"k1_N_per_MPa", 0.0, 10000.0}, {"g_bladder", 0.0, 1.0, 1, 0.0}, {"tau_s", 0.1, 500.0}},
+     2},
     {"end_effects", 3, {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}}, 0},
     {"braid_compliance", 2, {{"b1_per_MPa", 0.0, 0.2}, {"b2_per_MPa2", -0.2, 0.2}}, 0},
     {"softening", 2, {{"a", 0.0, 1.0}, {"width", 1e-3, 0.5}}, 1},
@@ -437,14 +440,19 @@ static double friction_step(const EffectsMuscle* k, const double* v, double* z, 
   return s->engaged ? force : 0.0;
 }
 
-// Viscoelasticity.step: one Maxwell branch on the strain.
-static double viscoelasticity_step(const double* v, double* w, const EffectSample* s) {
+// Viscoelasticity.step: Maxwell branches on the strain and on the bladder's force.
+static double viscoelasticity_step(const EffectsMuscle* k, const double* v, double* w, const EffectSample* s) {
+  double bladder = -fx_bladder_tension(k, s->P, s->L);
   if (s->first) {
     w[0] = s->x;
+    w[1] = bladder;
   } else {
-    w[0] += (1.0 - exp(-s->dt / v[2])) * (s->x - w[0]);
+    double a = 1.0 - exp(-s->dt / v[3]);
+    w[0] += a * (s->x - w[0]);
+    w[1] += a * (bladder - w[1]);
   }
   double force = -(v[0] + v[1] * s->P / 1e6) * (s->x - w[0]);
+  force += v[2] * (bladder - w[1]);
   return s->engaged ? force : 0.0;
 }
 
@@ -519,7 +527,7 @@ static double effects_step(const EffectsConfig* fx, double* state, const EffectS
         force += friction_step(&fx->muscle, v, own, s);
         break;
       case FX_VISCOELASTICITY:
-        force += viscoelasticity_step(v, own, s);
+        force += viscoelasticity_step(&fx->muscle, v, own, s);
         break;
       case FX_END_EFFECTS:
         force += end_effects_step(&fx->muscle, v, s);
