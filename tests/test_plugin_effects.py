@@ -12,6 +12,7 @@ on in the rig, and the MuJoCo replay reproduces the recording.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import mujoco
@@ -226,8 +227,6 @@ def test_bladder_branch_relaxes_a_pressure_step_at_a_fixed_length():
     # isometric: the strain branch sees nothing, the bladder branch takes g of the change of the
     # bladder's share of Eq. 2 (the tension less its pressure term, written out here from the
     # paper) and lets it decay as exp(-t/tau)
-    import math
-
     muscle = load_muscle("FAM1")
     t = np.arange(0.0, 10.0, 0.01)
     L = np.full(len(t), 1.3 * muscle.rest_length_m)
