@@ -216,6 +216,51 @@ def test_maxwell_branch_relaxes_exponentially_during_a_hold(fam1):
     assert ratio == pytest.approx(math.exp(-(t[hold][200] - t[hold][0]) / tau), rel=1e-6)
 
 
+def test_drift_on_the_pressure_clock_stands_still_while_vented_and_can_accelerate(fam1):
+    # written out: at a held pressure P the pressure clock runs at P_MPa seconds per second, so
+    # the saturating course is tau (1 - exp(-P_MPa t / tau)) and the accelerating one tau
+    # (exp(P_MPa t / tau) - 1); while vented the clock stops and the force holds its value
+    dt = 0.05
+    t = np.arange(0.0, 200.0, dt)
+    P = np.where(t < 100.0, 0.4e6, 0.0)
+    L = np.full(len(t), fam1.rest_length_m)  # x = 0: only d0 and d2 act
+    ctx = _ctx(fam1, t, L, P)
+    d0, d2, tau = 0.01, 0.05, 150.0
+    on = t < 100.0
+    u = 0.4 * t[on]  # the clock at the end of every sample (P_MPa dt per step, none at t = 0)
+    rate = d0 + d2 * 0.4
+    for course, expected in ((1.0, tau * (1 - np.exp(-u / tau))), (-1.0, tau * (np.exp(u / tau) - 1))):
+        values = dict(d0_N_per_s=d0, d1_N_per_s=0.0, d2_N_per_s_MPa=d2, tau_s=tau, clock=1.0, course=course)
+        f = E.get("drift").force(ctx, values)
+        np.testing.assert_allclose(f[on], rate * expected, rtol=1e-9, atol=1e-12)
+        # vented: the pressure term is gone and the clock holds where it stopped
+        np.testing.assert_allclose(f[~on], d0 * expected[-1], rtol=1e-9)
+    # the wall clock keeps running while vented
+    wall = E.get("drift").force(ctx, dict(d0_N_per_s=d0, d1_N_per_s=0.0, d2_N_per_s_MPa=0.0, tau_s=tau))
+    np.testing.assert_allclose(wall, d0 * tau * (1 - np.exp(-t / tau)), rtol=1e-9, atol=1e-12)
+
+
+def test_an_accelerating_drift_stays_finite_on_a_long_recording(fam1):
+    # three hours at 1 Hz: exp(t / 30 s) would overflow its square; the fit settles tau at the
+    # clock's span over MAX_EXPONENT, and the columns stay finite
+    t = np.arange(0.0, 3 * 3600.0, 1.0)
+    ctx = _ctx(fam1, t, np.full(len(t), fam1.rest_length_m), np.full(len(t), 0.2e6))
+    drift = E.get("drift")
+    settled = drift.settle(ctx, dict(tau_s=30.0, clock=0.0, course=-1.0))
+    assert settled["tau_s"] == pytest.approx(t[-1] / drift.MAX_EXPONENT)
+    _, cols = drift.design(ctx, settled)
+    assert np.all(np.isfinite(cols)) and np.isfinite(np.mean(cols**2))
+    assert drift.settle(ctx, dict(tau_s=30.0, clock=0.0, course=1.0))["tau_s"] == 30.0  # saturating: as tried
+
+
+def test_a_mode_takes_only_its_own_values():
+    with pytest.raises(ValueError, match=r"'clock' = 0.5 is not one of 0, 1"):
+        E.check_values("drift", dict(VALUES["drift"], clock=0.5))
+    with pytest.raises(ValueError, match=r"'course' = 0 is not one of -1, 1"):
+        E.check_values("drift", dict(VALUES["drift"], course=0.0))
+    assert E.check_values("drift", VALUES["drift"])["clock"] == 0.0  # older files: the wall clock
+
+
 def test_pressure_lag_at_fixed_length_is_the_lagged_pressure_through_the_model(fam1):
     # at constant length the gas volume is constant, so P_i is the first-order lag of P, and the
     # force is the model's at P_i: analytic for a step (above the dead band, linear in P)

@@ -252,6 +252,16 @@ def test_bladder_branch_relaxes_a_pressure_step_at_a_fixed_length():
     np.testing.assert_allclose(dF[hold], expected, rtol=1e-9)
 
 
+@pytest.mark.parametrize("clock, course", [(1.0, 1.0), (1.0, -1.0), (0.0, -1.0)])
+def test_drift_on_the_pressure_clock_or_accelerating_replays_as_the_reference(bench, clock, course):
+    recording, muscle = bench
+    effects = [("drift", dict(VALUES["drift"], clock=clock, course=course))]
+    reference = stepwise(muscle, effects, recording)
+    base = muscle.push(recording.pressure_Pa, recording.length_m)
+    assert np.max(np.abs(reference - base)) > 0.05  # the term does something here (N)
+    assert_same_force(rig.replay(recording, muscle, effects), reference)
+
+
 # ------------------------------------------------------- the state advances once per step
 STATEFUL = [(k, VALUES[k]) for k in ("friction", "viscoelasticity", "softening", "drift", "pressure_lag")]
 
@@ -342,6 +352,7 @@ BAD = {
     "not a number": (with_effects("friction", friction__f0_N="2 N"), "'friction.f0_N' must be a finite number"),
     "nan": (with_effects("softening", softening__a="nan"), "'softening.a' must be a finite number"),
     "parameter of an effect not on": (with_effects("friction", drift__tau_s="300"), "'drift.tau_s' is given but effect 'drift' is not"),
+    "a mode between its values": (with_effects("drift", drift__clock="0.5"), "'drift.clock' = 0.5 is not one of 0, 1"),
 }  # fmt: skip
 
 

@@ -261,17 +261,21 @@ def diagnose(
 
         rivals = {h: partial(_own_columns, m, fitted.muscle) for h, m in models.items()}
 
-        # what the data already say, block by block: it spreads the bootstrap's draws
+        # what the data already say, block by block: each hypothesis's held-out error there, which
+        # the new test must overturn (and which spreads the bootstrap's draws)
         (ha, hb) = list(models)[:2]
         if OUTSIDE in models:
             c = models[OUTSIDE].correction
             before = (
-                block_sse(c.heldout_residual_before, block) - block_sse(c.heldout_residual_after, block)
+                {
+                    ha: block_sse(c.heldout_residual_before, block),
+                    hb: block_sse(c.heldout_residual_after, block),
+                }
                 if c.heldout_residual_before is not None and c.heldout_residual_after is not None
                 else None
             )
         else:
-            before = sse[ha] - sse[hb] if ha in sse and hb in sse else None
+            before = {ha: sse[ha], hb: sse[hb]} if ha in sse and hb in sse else None
         half_before = int(labels.half_cycle.max()) + 1 if labels.half_cycle is not None else 1
         design = recommend(models, ctx, stroke_speed(ctx, labels), noise, absorb=absorb, before=before,
                            half_cycles_before=half_before, rivals=rivals)  # fmt: skip

@@ -106,14 +106,14 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -3.413  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
-    b: float = 6.664
-    c: float = -4.183
+    a: float = -3.178  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain)))
+    b: float = 6.556
+    c: float = -5.592
     tie_margin: float = 0.02  # held-out RMS within 2 %: the two cannot be told apart (not fitted)
-    an: float = 2.136  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -22.216
-    cn: float = -30.300
-    dn: float = -1.534  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = 2.710  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -26.360
+    cn: float = -29.621
+    dn: float = -1.143  # weight of the best effect's paired separation from none (``best_effect_z``)
 
 
 CALIBRATION = Calibration()
@@ -190,7 +190,7 @@ def bootstrap_blocks(block_sse: dict[str, np.ndarray], margin: float = MIN_GAIN,
     one value per block, the same blocks for all)."""
     names = list(block_sse)
     sse = np.stack([np.asarray(block_sse[h], float) for h in names])
-    penalty = np.array([_penalty(h, margin) for h in names])
+    penalty = np.array([relevance_penalty(h, margin) for h in names])
     rng = np.random.default_rng(seed)
     w = rng.gamma(concentration, 1.0, size=(draws, sse.shape[1]))
     totals = (w @ sse.T) * penalty  # draws x hypotheses
@@ -255,7 +255,9 @@ def _mean_over_standard_error(d: np.ndarray, tiny: float) -> float:
     return mean / se
 
 
-def _penalty(h: str, margin: float = MIN_GAIN) -> float:
+def relevance_penalty(h: str, margin: float = MIN_GAIN) -> float:
+    """The factor a hypothesis's held-out squared error is weighed by: an effect must beat
+    ``none`` by the relevance margin (its RMS ``margin`` lower), so its error counts 1/(1 - margin)^2."""
     return 1.0 if h == "none" else 1.0 / (1.0 - margin) ** 2
 
 
@@ -265,7 +267,7 @@ def separation(block_sse: dict, a: str, b: str) -> float | None:
     when either was not scored."""
     if a not in block_sse or b not in block_sse:
         return None
-    return paired_log_z(np.asarray(block_sse[a]) * _penalty(a), block_sse[b], _penalty(b))
+    return paired_log_z(np.asarray(block_sse[a]) * relevance_penalty(a), block_sse[b], relevance_penalty(b))
 
 
 def none_features(excess: float, dd_gain: float, effect_z: float) -> tuple[float, float, float]:

@@ -40,8 +40,13 @@ over blocks (``confidence``), so the unabsorbed squared difference is summed in 
 new recording will be cut into (``blocks_of``: its half-cycles, in pieces while the joined data
 have fewer than ``confidence.MIN_BLOCKS``) and ``decision_z`` gives the z of the truth's win
 (one block, however large its difference, gives z = 1: a bootstrap over blocks cannot trust it;
-the same difference over K blocks gives sqrt(K)), its spread widened by the noise's cross term,
-and by the two hypotheses' block-by-block difference in the data already recorded. Candidates
+the same difference over K blocks gives sqrt(K)), its spread widened by the noise's cross term.
+The decision is the bootstrap's as it is made: an effect must beat ``none`` by the relevance
+margin (``confidence.relevance_penalty``: 3 % of held-out RMS, about 6 % of the noise's mean
+square in every new sample), and the truth's advantage in the blocks already recorded counts as
+it stands (a weak effect the re-fit half absorbed starts behind, and the new test must overturn
+that). A braid stretch of a third of the noise against ``none`` was recommended a test of
+expected z 3.7 that left the joined data still split 51:49. Candidates
 reaching ``Z_DECIDE`` all decide; among them the largest unabsorbed difference per sample
 against the noise is recommended (robust to what the two fitted models leave out, and no test is
 preferred for its length alone). When none reaches it, the best one followed by whichever of the
@@ -61,7 +66,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .confidence import MIN_BLOCKS, OUTSIDE, cut_runs
+from .confidence import MIN_BLOCKS, OUTSIDE, cut_runs, relevance_penalty
 from .effects import Context, EffectModel
 from .segment import label
 
@@ -297,21 +302,24 @@ def blocks_of(
     return cut_runs(half, pieces, skip_empty=True)
 
 
-def decision_z(block_gap: np.ndarray, noise_N: float, before=None) -> float:
+def decision_z(block_gap: np.ndarray, noise_N: float, before=None, cost=None) -> float:
     """Expected z of the diagnosis's decision once a new recording is added: the Bayesian
     bootstrap over blocks (``confidence.bootstrap``) weighs each block's held-out squared error
     with independent unit-mean weights, so the truth beats the other hypothesis in a fraction
-    ~ Phi(z) of its draws, with z = sum_k S_k / sqrt(sum_k (S_k^2 + 4 noise^2 S_k) + sum_j D_j^2):
-    ``block_gap`` S_k, the squared force difference no re-fit takes up summed over each new block
-    (N^2), adds S_k to the wrong hypothesis's error (the noise's cross term 4 noise^2 S_k to its
-    spread); ``before`` D_j, the two hypotheses' held-out squared-error difference in each block
-    of the data already recorded, only spreads the draws (its sign is what was ambiguous). A
-    difference spread over many blocks counts more than the same chi-square in one: one block
-    decides nothing under the bootstrap."""
+    ~ Phi(z) of its draws, with z = sum_k a_k / sqrt(sum_k (a_k^2 + 4 noise^2 S_k)) over the new
+    blocks and the old ones. ``block_gap`` S_k, the squared force difference no re-fit takes up
+    summed over each new block (N^2), adds S_k to the wrong hypothesis's error (the noise's cross
+    term 4 noise^2 S_k to its spread), less ``cost`` c_k (the relevance margin an effect must
+    beat ``none`` by, priced on the block's noise: a_k = S_k - c_k); ``before`` D_j, the truth's
+    held-out advantage in each block of the data already recorded (the rival's squared error
+    less the truth's, margins applied), counts as it stands: the joined data must overturn what
+    the old data say. A difference spread over many blocks counts more than the same chi-square
+    in one: one block decides nothing under the bootstrap."""
     S = np.asarray(block_gap, float)
+    a = S - (0.0 if cost is None else np.asarray(cost, float))
     D = np.zeros(0) if before is None else np.asarray(before, float)
-    spread = float(np.sum(S * S) + 4.0 * noise_N**2 * np.sum(S) + np.sum(D * D))
-    return float(np.sum(S) / math.sqrt(spread)) if spread > 0 else 0.0
+    spread = float(np.sum(a * a) + 4.0 * noise_N**2 * np.sum(S) + np.sum(D * D))
+    return float((np.sum(a) + np.sum(D)) / math.sqrt(spread)) if spread > 0 else 0.0
 
 
 def directions(na: str, nb: str) -> list[tuple[str, str]]:
@@ -340,8 +348,10 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     maps a hypothesis to the columns its own amplitudes move there (its shapes and time constants
     as fitted): when the data come from one hypothesis, the other re-fits on the joined data, and
     only what neither re-fit takes up decides. Each way round (``directions``) is scored and the
-    weaker one counts. ``before``: the two hypotheses' held-out squared-error difference per
-    block of the data already recorded; ``half_cycles_before``: their half-cycle count.
+    weaker one counts. ``before``: each hypothesis's held-out squared error per block of the data
+    already recorded (the truth's advantage there counts in the decision, with the relevance
+    margin an effect must beat ``none`` by: ``confidence.relevance_penalty``, priced on the new
+    blocks too); ``half_cycles_before``: their half-cycle count.
 
     A test still short of ``Z_DECIDE`` is repeated (``repeated``: 2 to ``MAX_REPEATS`` times,
     at most ``MAX_TEST_S`` in all) until its expected z reaches it: a repeat adds blocks that
@@ -349,7 +359,15 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     while the spread of the data already recorded stays what it was."""
     (na, a), (nb, b) = list(models.items())[:2]
     rivals = rivals or {}
-    own_columns = [rivals.get(rival) for _, rival in directions(na, nb)]
+    ways = directions(na, nb)
+    own_columns = [rivals.get(rival) for _, rival in ways]
+    # each way round: how much more the truth's error weighs than the rival's in the bootstrap
+    # (an effect against none: the relevance margin), and the truth's advantage in the old blocks
+    weights = [relevance_penalty(truth) / relevance_penalty(rival) for truth, rival in ways]
+    old_advantage = [
+        None if before is None else np.asarray(before[rival]) - w * np.asarray(before[truth])
+        for (truth, rival), w in zip(ways, weights)
+    ]
 
     def score(e: Experiment) -> dict:
         """The expected outcome of running ``e`` (the weaker way round decides)."""
@@ -360,7 +378,11 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
         lefts = [_left_series(d, model_cols, None if own is None else own(t, L, P)) for own in own_columns]
         # block sums at the recorded rate (simulated at SAMPLE_HZ), each way round
         way_gaps = [np.bincount(block, weights=ls**2) * (sample_hz / SAMPLE_HZ) for ls in lefts]
-        zs = [decision_z(g, noise_N, before) for g in way_gaps]
+        samples = np.bincount(block) * (sample_hz / SAMPLE_HZ)
+        zs = [
+            decision_z(g, noise_N, old, (w - 1.0) * samples * noise_N**2)
+            for g, old, w in zip(way_gaps, old_advantage, weights)
+        ]
         weak = int(np.argmin(zs))
         left = float(np.sqrt(np.mean(lefts[weak] ** 2)))
         return {"name": e.name, "protocol": e.words, "predicted_difference_rms_N": rms,

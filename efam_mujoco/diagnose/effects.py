@@ -338,6 +338,7 @@ class Param:
     grid: tuple[float, ...] = ()
     meaning: str = ""
     default: float | None = None  # an optional key's value when it is not given (older files)
+    discrete: bool = False  # a shape that takes its grid's values only (a mode), never refined
 
     def value_in(self, values: dict) -> float:
         """This parameter's value in ``values``, its default when it is optional and absent."""
@@ -687,32 +688,106 @@ class Softening(Effect):
 
 
 class Drift(Effect):
-    """Drift: a force that builds up over time (creep, temperature), depending on strain and pressure."""
+    """Drift: a force that builds up slowly (temperature, creep of the bladder or the set-up),
+    depending on strain and pressure. Its clock is the time since the start, or the time spent
+    under pressure (seconds at 1 MPa: rubber creeps under load, not while vented); its course
+    either saturates (a warm-up, primary creep) or accelerates (a warming that is still building,
+    tertiary creep)."""
+
+    #: the clocks: wall time, or the pressure-time integral in seconds at 1 MPa
+    WALL, PRESSURE = 0.0, 1.0
+    #: the courses: saturating (1 - exp) or accelerating (exp - 1)
+    SATURATING, ACCELERATING = 1.0, -1.0
+    #: an accelerating course's tau is at least the clock's span over this (its square stays
+    #: finite in double precision: a numerical guard, not a physical bound)
+    MAX_EXPONENT = 300.0
 
     def __init__(self):
         super().__init__(
             name="drift",
-            summary="slow change over time (temperature, creep of the set-up)",
-            equation="dF = (d0 + d1 x + d2 P_MPa) tau (1 - exp(-t/tau))",
+            summary="slow change over time or under load (temperature, creep of the bladder or set-up)",
+            equation="dF = (d0 + d1 x + d2 P_MPa) s(u),  s = tau (1 - exp(-u/tau)) saturating or "
+            "tau (exp(u/tau) - 1) accelerating;  u = t, or u = int P_MPa dt (time under pressure)",
             params=(
-                Param("d0_N_per_s", -1.0, 1.0, meaning="initial drift rate of the force"),
+                Param("d0_N_per_s", -1.0, 1.0, meaning="initial drift rate of the force (per clock second)"),
                 Param("d1_N_per_s", -10.0, 10.0, meaning="its growth with strain"),
                 Param("d2_N_per_s_MPa", -10.0, 10.0, meaning="its growth with pressure"),
-                Param("tau_s", 30.0, 1e6, True, (100.0, 300.0, 1000.0, 3000.0, 1e5), "time constant"),
+                Param(
+                    "tau_s",
+                    30.0,
+                    1e6,
+                    True,
+                    (100.0, 300.0, 1000.0, 3000.0, 1e5),
+                    "time constant (clock seconds)",
+                ),
+                Param(
+                    "clock",
+                    0.0,
+                    1.0,
+                    True,
+                    (0.0, 1.0),
+                    "0: time since the start; 1: time under pressure (seconds at 1 MPa)",
+                    default=0.0,
+                    discrete=True,
+                ),
+                Param(
+                    "course",
+                    -1.0,
+                    1.0,
+                    True,
+                    (1.0, -1.0),
+                    "1: saturating; -1: accelerating",
+                    default=1.0,
+                    discrete=True,
+                ),
             ),
-            plugin="efam.muscle keys drift.*; stateless, uses the time since the first step",
-            signature="a residual that changes steadily with time, across pressures and cycles",
+            state=("u",),
+            plugin="efam.muscle keys drift.*; state: the pressure clock (the wall clock is the time since the first step)",
+            signature="a residual that changes steadily with time or with the load borne, across pressures and cycles",
         )
 
+    @staticmethod
+    def course(u, tau: float, course: float):
+        """s(u): tau (1 - exp(-u/tau)) when saturating, tau (exp(u/tau) - 1) when accelerating
+        (both start at slope 1)."""
+        return tau * np.expm1(u / tau) if course == Drift.ACCELERATING else tau * -np.expm1(-u / tau)
+
+    def _clock(self, ctx, shape):
+        return self.pressure_clock(ctx) if shape.get("clock", self.WALL) == self.PRESSURE else ctx.t
+
+    def settle(self, ctx, shape):
+        """An accelerating course's tau at least the clock's span / ``MAX_EXPONENT``."""
+        out = dict(shape)
+        if out.get("course", self.SATURATING) == self.ACCELERATING and ctx.n:
+            out["tau_s"] = max(out["tau_s"], float(np.max(self._clock(ctx, out))) / self.MAX_EXPONENT)
+        return out
+
     def _design(self, ctx, shape):
-        tau = shape["tau_s"]
-        s = tau * -np.expm1(-ctx.t / tau)
+        s = self.course(self._clock(ctx, shape), shape["tau_s"], shape.get("course", self.SATURATING))
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([s, ctx.x * s, ctx.P_MPa * s]))
+
+    @staticmethod
+    def pressure_clock(ctx):
+        """Seconds at 1 MPa borne since each recording's start: the sum of P_MPa (t_k - t_{k-1})
+        over the samples so far (the step's own rule, so that replay and plugin agree)."""
+
+        def make():
+            u = np.zeros(ctx.n)
+            for b, e in segments(ctx.starts, ctx.n):
+                inc = np.maximum(ctx.P_MPa[b + 1 : e], 0.0) * np.diff(ctx.t[b:e])
+                u[b + 1 : e] = np.cumsum(inc)
+            return u
+
+        return ctx.cached("pressure_clock", make)
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the drift; see :class:`Effect.step`."""
-        tau = v["tau_s"]
-        ramp = tau * -math.expm1(-s.t / tau)
+        if s.first:
+            state[0] = 0.0
+        else:
+            state[0] += max(s.P, 0.0) / 1e6 * s.dt
+        u = state[0] if v.get("clock", self.WALL) == self.PRESSURE else s.t
+        ramp = float(self.course(u, v["tau_s"], v.get("course", self.SATURATING)))
         force = (v["d0_N_per_s"] + v["d1_N_per_s"] * s.x + v["d2_N_per_s_MPa"] * s.P / 1e6) * ramp
         return force if s.engaged else 0.0
 
@@ -902,6 +977,11 @@ def check_values(name: str, values: dict) -> dict[str, float]:
             raise ValueError(f"effect '{name}': parameter '{p.key}' must be a finite number, got {v!r}")
         if not p.lo <= v <= p.hi:
             raise ValueError(f"effect '{name}': parameter '{p.key}' = {v:g} is outside [{p.lo:g}, {p.hi:g}]")
+        if p.discrete and v not in p.grid:
+            choices = ", ".join(f"{g:g}" for g in sorted(p.grid))
+            raise ValueError(
+                f"effect '{name}': parameter '{p.key}' = {v:g} is not one of {choices} ({p.meaning})"
+            )
         out[p.key] = float(v)
     if effect.per_recording and f"{effect.linear[0].key}_by_recording" in values:
         per = values[f"{effect.linear[0].key}_by_recording"]

@@ -55,6 +55,7 @@ typedef struct {
   double lo, hi;  // inclusive, as effects.Param / check_values
   int optional;    // may be absent, as effects.Param.default: a key added after files were written
   double fallback;  // its value when absent (effects.Param.default)
+  int discrete;     // a mode: only lo or hi is allowed (effects.Param.discrete, a two-value grid)
 } EffectParam;
 
 typedef struct {
@@ -82,9 +83,14 @@ static const EffectSpec kEffects[NEFFECT] = {
     {"braid_compliance", 2, {{"b1_per_MPa", 0.0, 0.2}, {"b2_per_MPa2", -0.2, 0.2}}, 0},
     {"softening", 2, {{"a", 0.0, 1.0}, {"width", 1e-3, 0.5}}, 1},
     {"drift",
-     4,
-     {{"d0_N_per_s", -1.0, 1.0}, {"d1_N_per_s", -10.0, 10.0}, {"d2_N_per_s_MPa", -10.0, 10.0}, {"tau_s", 30.0, 1e6}},
-     0},
+     6,
+     {{"d0_N_per_s", -1.0, 1.0},
+      {"d1_N_per_s", -10.0, 10.0},
+      {"d2_N_per_s_MPa", -10.0, 10.0},
+      {"tau_s", 30.0, 1e6},
+      {"clock", 0.0, 1.0, 1, 0.0, 1},
+      {"course", -1.0, 1.0, 1, 1.0, 1}},
+     1},
     {"pressure_lag", 3, {{"tau_s", 0.002, 3.0}, {"delay_s", 0.0, 0.5, 1, 0.0}, {"volume_gain", 0.0, 1.5, 1, 1.0}}, 2},
 };
 #define EFFECT_KNOWN "friction, viscoelasticity, end_effects, braid_compliance, softening, drift, pressure_lag"
@@ -321,6 +327,9 @@ static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx,
       if (!(p->lo <= value && value <= p->hi)) {
         EFFECT_ERROR(m, instance, "config key '%s' = %.10g is outside [%g, %g]", key, value, p->lo, p->hi);
       }
+      if (p->discrete && value != p->lo && value != p->hi) {
+        EFFECT_ERROR(m, instance, "config key '%s' = %.10g is not one of %g, %g", key, value, p->lo, p->hi);
+      }
       fx->value[e][j] = value;
     }
   }
@@ -485,10 +494,13 @@ static double softening_step(const EffectsMuscle* k, const double* v, double* m,
   return s->engaged ? force : 0.0;
 }
 
-// Drift.step: a first-order approach in the time since the start.
-static double drift_step(const double* v, const EffectSample* s) {
+// Drift.step: (d0 + d1 x + d2 P_MPa) s(u); u = the time since the start (clock 0) or the time under
+// pressure, the sum of P_MPa dt (clock 1, state u[0]); s saturating (course 1) or accelerating (-1).
+static double drift_step(const double* v, double* u, const EffectSample* s) {
+  u[0] = s->first ? 0.0 : u[0] + max0(s->P) / 1e6 * s->dt;
   double tau = v[3];
-  double ramp = tau * -expm1(-s->t / tau);
+  double clock = v[4] == 1.0 ? u[0] : s->t;
+  double ramp = v[5] == -1.0 ? tau * expm1(clock / tau) : tau * -expm1(-clock / tau);
   double force = (v[0] + v[1] * s->x + v[2] * s->P / 1e6) * ramp;
   return s->engaged ? force : 0.0;
 }
@@ -539,7 +551,7 @@ static double effects_step(const EffectsConfig* fx, double* state, const EffectS
         force += softening_step(&fx->muscle, v, own, s);
         break;
       case FX_DRIFT:
-        force += drift_step(v, s);
+        force += drift_step(v, own, s);
         break;
       case FX_PRESSURE_LAG:
         force += pressure_lag_step(&fx->muscle, v, own, s);
