@@ -307,10 +307,11 @@ def decision_z(block_gap: np.ndarray, noise_N: float, before=None, cost=None) ->
     bootstrap over blocks (``confidence.bootstrap``) weighs each block's held-out squared error
     with independent unit-mean weights, so the truth beats the other hypothesis in a fraction
     ~ Phi(z) of its draws, with z = (sum_k a_k + sum_j D_j) / sqrt(sum_k (a_k^2 + 4 noise^2 S_k) +
-    sum_j D_j^2) over the new blocks k and the old ones j. ``block_gap`` S_k, the squared force difference no re-fit takes up
-    summed over each new block (N^2), adds S_k to the wrong hypothesis's error (the noise's cross
-    term 4 noise^2 S_k to its spread), less ``cost`` c_k (the relevance margin an effect must
-    beat ``none`` by, priced on the block's noise: a_k = S_k - c_k); ``before`` D_j, the truth's
+    sum_j D_j^2) over the new blocks k and the old ones j. ``block_gap`` S_k, the squared force
+    difference no re-fit takes up summed over each new block (N^2), adds S_k to the wrong
+    hypothesis's error (the noise's cross term 4 noise^2 S_k to its spread), less ``cost`` c_k
+    (the relevance margin an effect must beat ``none`` by, priced on the block's noise:
+    a_k = S_k - c_k); ``before`` D_j, the truth's
     held-out advantage in each block of the data already recorded (the rival's squared error
     less the truth's, margins applied), counts as it stands: the joined data must overturn what
     the old data say. A difference spread over many blocks counts more than the same chi-square

@@ -308,6 +308,18 @@ class Context:
         """The bladder's share of the push force at every sample (N): minus its Eq. 2 tension terms."""
         return self.cached("bladder", lambda: -bladder_tension(self.muscle, self.P, self.L))
 
+    def pressure_clock(self):
+        """Seconds at 1 MPa borne since each recording's start: the sum of P_MPa (t_k - t_{k-1})
+        over the samples so far (``Drift.step``'s own rule, so that replay and plugin agree)."""
+
+        def make():
+            u = np.zeros(self.n)
+            for b, e in segments(self.starts, self.n):
+                u[b + 1 : e] = np.cumsum(np.maximum(self.P_MPa[b + 1 : e], 0.0) * np.diff(self.t[b:e]))
+            return u
+
+        return self.cached("pressure_clock", make)
+
     def dF_dB(self):
         """d push / d ln B (the force change per relative thread stretch)."""
 
@@ -432,6 +444,11 @@ class Sample:
     def x(self) -> float:
         """The muscle's axial strain at this sample, L / L_rest - 1."""
         return self.L / self.muscle.rest_length_m - 1.0
+
+    @property
+    def bladder_push(self) -> float:
+        """The bladder's share of the push force at this sample (N), as :meth:`Context.bladder_push`."""
+        return -float(bladder_tension(self.muscle, self.P, self.L))
 
     @property
     def engaged(self) -> bool:
@@ -572,7 +589,7 @@ class Viscoelasticity(Effect):
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the Maxwell branches; see :class:`Effect.step`."""
-        bladder = -float(bladder_tension(s.muscle, s.P, s.L))
+        bladder = s.bladder_push
         if s.first:
             state[0], state[1] = s.x, bladder
         else:
@@ -682,7 +699,7 @@ class Softening(Effect):
         """One sample of the softening; see :class:`Effect.step`."""
         u = abs(s.x) * (1.0 + s.P / 0.5e6)
         state[0] = u if s.first else max(state[0], u)
-        bladder = -float(bladder_tension(s.muscle, s.P, s.L))
+        bladder = s.bladder_push
         force = v["a"] * math.exp(-(state[0] - u) / v["width"]) * bladder
         return force if s.engaged else 0.0
 
@@ -753,7 +770,7 @@ class Drift(Effect):
         return tau * np.expm1(u / tau) if course == Drift.ACCELERATING else tau * -np.expm1(-u / tau)
 
     def _clock(self, ctx, shape):
-        return self.pressure_clock(ctx) if shape.get("clock", self.WALL) == self.PRESSURE else ctx.t
+        return ctx.pressure_clock() if shape.get("clock", self.WALL) == self.PRESSURE else ctx.t
 
     def settle(self, ctx, shape):
         """An accelerating course's tau at least the clock's span / ``MAX_EXPONENT``."""
@@ -765,20 +782,6 @@ class Drift(Effect):
     def _design(self, ctx, shape):
         s = self.course(self._clock(ctx, shape), shape["tau_s"], shape.get("course", self.SATURATING))
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([s, ctx.x * s, ctx.P_MPa * s]))
-
-    @staticmethod
-    def pressure_clock(ctx):
-        """Seconds at 1 MPa borne since each recording's start: the sum of P_MPa (t_k - t_{k-1})
-        over the samples so far (the step's own rule, so that replay and plugin agree)."""
-
-        def make():
-            u = np.zeros(ctx.n)
-            for b, e in segments(ctx.starts, ctx.n):
-                inc = np.maximum(ctx.P_MPa[b + 1 : e], 0.0) * np.diff(ctx.t[b:e])
-                u[b + 1 : e] = np.cumsum(inc)
-            return u
-
-        return ctx.cached("pressure_clock", make)
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the drift; see :class:`Effect.step`."""
