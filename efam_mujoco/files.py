@@ -42,8 +42,11 @@ class OutputError(ValueError):
 
 # ---------------------------------------------------------------------------- atomic files
 def _temporary_beside(path: Path, suffix: str = "") -> tuple[int, Path]:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".efam-tmp{suffix}", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".efam-tmp{suffix}", dir=path.parent)
+    except OSError as err:  # the user's path, not the temporary's name nobody asked for
+        raise OutputError(f"cannot write {path} ({err.strerror or err})") from None
     return fd, Path(name)
 
 
@@ -196,6 +199,10 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
         for other_label, other in outs[:i]:
             if _same_file(out, other):
                 raise OutputError(f"{other_label} and {label} are the same file ({out}); give two paths")
+        if label == "--json" and out.is_dir():
+            raise OutputError(
+                f"{label} {out}: is a folder, not a file; give a file name (e.g. {out / 'result.json'})"
+            )
         _check_writable_place(label, out)
         for folder in package:
             if _inside(out, folder):

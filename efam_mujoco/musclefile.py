@@ -65,6 +65,10 @@ PLAUSIBLE = {
     "pressure": (0.0, 10e6),  # a dead band up to 10 MPa
     "angle": (0.0, 3.141592653589793 / 2),
 }
+#: Braid angles at rest (deg) a braided sleeve is wound at, and the thinnest bladder wall (m):
+#: outside them a muscle file's constants describe nothing that could be built.
+BRAID_ANGLE_DEG = (2.0, 88.0)
+MIN_WALL_M = 1e-5
 #: No stress-law coefficient of a rubber bladder comes near this (1 TPa, stiffer than diamond).
 MAX_COEFFICIENT = 1e12
 #: Pressures at which a muscle file's model must give a finite force at every admissible length.
@@ -315,6 +319,7 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             name=str(doc.get("name", label)),
         )
         check_finite_forces(muscle, f"{label}: stress law '{stress.name}'")
+        _check_build(muscle, given, label)
         return muscle
     except (MuscleError, StressLawError, UnitError, OverflowError, ZeroDivisionError) as err:
         msg = " ".join(str(err).split()) or type(err).__name__
@@ -325,6 +330,28 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
         if isinstance(err, MuscleFileError):
             raise
         raise MuscleFileError(f"{label}: the constants give no valid muscle ({err})") from None
+
+
+def _check_build(muscle: Muscle, given: dict, label: str) -> None:
+    """A braid and a bladder that could be built: the rest angle inside ``BRAID_ANGLE_DEG`` (near 0
+    the threads run along the axis and hold no hoop load, near 90 they wind in rings) and the wall
+    at least ``MIN_WALL_M`` thick. Each key is in range on its own; together they can still
+    describe no muscle (a 1e-11 m^3 bladder in a 23 mm sleeve: a wall a thousandth of a micron
+    thick, which the diagnosis then met with effects on clean data)."""
+    lo, hi = BRAID_ANGLE_DEG
+    if not lo <= muscle.theta_rest_deg <= hi:
+        key = next((k for k in given if split_unit(k)[0] == "theta_rest"), "theta_rest_deg")
+        raise MuscleFileError(
+            f"{label}: constants: key '{key}' gives a braid angle of {muscle.theta_rest_deg:.4g} deg at rest; a "
+            f"braided sleeve is wound at {lo:g} .. {hi:g} deg (was it in radians, or the complement?)"
+        )
+    if not muscle.rest_wall_thickness_m >= MIN_WALL_M:
+        key = next((k for k in given if split_unit(k)[0] == "bladder_volume"), "bladder_volume_m3")
+        raise MuscleFileError(
+            f"{label}: constants: key '{key}' = {muscle.bladder_volume_m3:.4g} m^3 gives a bladder wall "
+            f"{muscle.rest_wall_thickness_m * 1e3:.3g} mm thick at rest, thinner than any bladder "
+            f"({MIN_WALL_M * 1e3:g} mm); the key is the volume of the bladder's rubber, not of the air inside"
+        )
 
 
 def check_finite_forces(muscle: Muscle, where: str, pressures_Pa=CHECK_PRESSURES_PA) -> None:

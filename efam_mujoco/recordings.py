@@ -108,6 +108,14 @@ _ACCEPTED = "time_<unit>, length_<unit> | displacement_<unit>, pressure_<unit>, 
 BAD_ROW_POLICIES = ("error", "drop")
 
 
+def _shown(text: str, limit: int = 40) -> str:
+    """A header or cell as an error message quotes it: at most ``limit`` characters, and control
+    characters escaped (a binary file's bytes or a terminal escape sequence never reach the
+    screen as they are)."""
+    clipped = text if len(text) <= limit else text[:limit] + "..."
+    return clipped if clipped.isprintable() else clipped.encode("unicode_escape").decode("ascii")
+
+
 def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, str, str, float]]:
     """Map each role to (column index, header, base, factor to SI with sign)."""
     found: dict[str, tuple[int, str, str, float]] = {}
@@ -120,7 +128,7 @@ def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, s
         base, unit = split_unit(name)
         if name in _BASE_ROLE:
             raise RecordingError(
-                f"{label}: line {line}, column '{name}' has no unit; write e.g. "
+                f"{label}: line {line}, column '{_shown(name)}' has no unit; write e.g. "
                 f"'{name}_{'kPa' if name == 'pressure' else next(iter(_unit_table(name)))}'"
             )
         if base not in _BASE_ROLE:
@@ -128,20 +136,22 @@ def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, s
                 if len(header) == 1 and sep in name:
                     # one header cell holding every header: another separator than the comma
                     raise RecordingError(
-                        f"{label}: line {line}, unknown column '{name}': the header is one field "
+                        f"{label}: line {line}, unknown column '{_shown(name)}': the header is one field "
                         f"holding '{word}'-separated names; save the file comma-separated, with "
                         f"decimal points (accepted: {_ACCEPTED})"
                     )
-            raise RecordingError(f"{label}: line {line}, unknown column '{name}' (accepted: {_ACCEPTED})")
+            raise RecordingError(
+                f"{label}: line {line}, unknown column '{_shown(name)}' (accepted: {_ACCEPTED})"
+            )
         role = _BASE_ROLE[base]
         quantity, sign = _ROLES[role][base]
         try:
-            scale = factor(unit, quantity, f"{label}: line {line}, column '{name}'")
+            scale = factor(unit, quantity, f"{label}: line {line}, column '{_shown(name)}'")
         except UnitError as err:
             raise RecordingError(str(err)) from None
         if role in found:
             raise RecordingError(
-                f"{label}: line {line}, columns '{found[role][1]}' and '{name}' both give the {role}"
+                f"{label}: line {line}, columns '{_shown(found[role][1])}' and '{_shown(name)}' both give the {role}"
             )
         found[role] = (index, name, base, sign * scale)
     for role in _ROLES:
@@ -322,12 +332,12 @@ def _parse_row(row, header, columns, order):
                 raise ValueError(text)
             value = float(text)
         except ValueError:
-            shown = text if len(text) <= 40 else text[:40] + "..."
+            shown = _shown(text)
             # a decimal comma is refused, not guessed (it could be a thousands separator)
             hint = " (a decimal comma? write decimal points)" if _DECIMAL_COMMA.match(text) else ""
             return None, (name, f"not a number: {shown!r}{hint}")
         if not math.isfinite(value):
-            return None, (name, f"not a finite number: {text!r}")
+            return None, (name, f"not a finite number: {_shown(text)!r}")
         value *= scale
         if not abs(value) <= MAX_MAGNITUDE_SI:
             return None, (name, f"{text} cannot be physical (magnitude above {MAX_MAGNITUDE_SI:g} in SI)")
@@ -402,6 +412,7 @@ CHECKS = {
     "force-range": "forces beyond what the muscle can produce",
     "force-dead": "a constant or dead force channel (load cell)",
     "force-sign": "a force channel whose sign is the other way round (push vs pull)",
+    "force-model": "a force channel that does not follow length and pressure at all (noise, another test's column)",
     "nothing-varies": "length and pressure both constant",
     "tension-only": "a tension-only muscle recorded pushing",
 }
@@ -418,6 +429,10 @@ TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
 #: A recorded force whose correlation with the model's (same lengths and pressures) is below
 #: minus this has its sign the other way round (effects and zeros keep it well above zero).
 SIGN_CORRELATION = 0.5
+#: ... and one whose correlation with it lies within plus or minus this does not follow the
+#: muscle at all: a muscle's force rises and falls with its pressure and length whatever its
+#: friction, drift or zero (a channel of noise, a column from another test, shuffled rows)
+FOLLOW_CORRELATION = 0.3
 #: Gauge pressures below this are flagged (noise around zero passes).
 NEGATIVE_PRESSURE_PA = -10e3
 #: One standard atmosphere (Pa): what an absolute pressure reads above the gauge pressure.
@@ -610,6 +625,13 @@ def check_plausibility(
                     f"{r:.2f} over the recorded lengths and pressures): is its sign the other way round "
                     "('force_<unit>' is positive when the muscle pushes its ends apart, 'tension_<unit>' when it "
                     "pulls), or is --muscle not the muscle that was tested?"
+                )))  # fmt: skip
+            elif abs(r) < FOLLOW_CORRELATION:
+                findings.append(Finding("force-model", (
+                    f"{src}: column '{fcol}': the recorded force does not follow the muscle's length and "
+                    f"pressure (correlation {r:.2f} with the model's force over the recorded lengths and "
+                    "pressures, where any muscle's force rises and falls with them): is it the load cell of "
+                    "this test, are the rows in order, or is --muscle not the muscle that was tested?"
                 )))  # fmt: skip
         if np.ptp(L) == 0.0 and np.ptp(P) == 0.0:
             findings.append(Finding("nothing-varies", (

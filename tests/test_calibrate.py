@@ -163,7 +163,7 @@ def test_calibrate_estimates_geometry_and_picks_the_true_law(tmp_path):
     assert cal.theta_rest_deg == pytest.approx(truth.theta_rest_deg, abs=0.1)
     assert cal.best_law == "exponential_decay"
     doc = cal.to_json()
-    assert set(doc) == {"deadband_kPa", "theta_rest_deg", "laws", "best_law"}
+    assert set(doc) == {"deadband_kPa", "blocked_deadband_kPa", "theta_rest_deg", "laws", "best_law"}
     for law, entry in doc["laws"].items():
         assert set(entry) == JSON_LAW_KEYS
         assert set(entry["coefficients"]) == set(LAWS[law].params)
@@ -219,3 +219,19 @@ def test_cli_bad_csv_is_one_clear_line(tmp_path, capsys):
     assert efam(["calibrate", str(bad), "--muscle", "FAM1"]) == 2
     err = capsys.readouterr().err
     assert "bad.csv" in err and "'pressure' has no unit" in err
+
+
+def test_a_tested_level_below_the_dead_band_keeps_the_dead_band_as_estimated():
+    # a paper-style calibration whose lowest level (40 kPa) lies below the muscle's dead band
+    # (60 kPa): that level carries no pressure force, and the Sec. 4.3 estimate from the other
+    # levels stands. The law fits used to lower it under the lowest level (38 kPa), and every
+    # level was then misfit by 7 N RMS against the 0.5 N noise, the file and its summary
+    # disagreeing on the dead band
+    truth = replace(load_muscle("FAM1", "linear"), deadband_Pa=60e3)
+    recordings = synthesize(truth, [40e3, 100e3, 200e3, 300e3, 400e3], seed=3)
+    cal = calibrate(recordings, load_muscle("FAM1"), "linear", heldout=False)
+    assert cal.muscle.deadband_Pa == pytest.approx(truth.deadband_Pa, abs=1.5e3)
+    assert cal.fits["linear"].rms_N < 0.6
+    summary = cal.to_json()
+    assert summary["deadband_kPa"] == pytest.approx(cal.muscle.deadband_Pa / 1e3)
+    assert summary["blocked_deadband_kPa"] == pytest.approx(cal.deadband_Pa / 1e3)

@@ -164,6 +164,17 @@ CASES = [
     ("sleeve angle 95 deg", edited(geometry__sleeve_angle_ref_deg=95.0), [r"sleeve_angle_ref"]),
     ("theta 0 in constants", {**fam1(), "constants": {"theta_rest_deg": 0.0}}, [r"theta_rest"]),
     ("theta 90 deg", {**fam1(), "constants": {"theta_rest_deg": 90.0}}, [r"theta_rest|braid"]),
+    # each constant in range, together nothing that could be built
+    (
+        "threads along the axis",
+        {**fam1(), "constants": {"theta_rest_deg": 0.0001}},
+        [r"key 'theta_rest_deg' gives a braid angle of 0.0001 deg", r"2 \.\. 88 deg"],
+    ),
+    (
+        "bladder of a thousandth of a micron",
+        {**fam1(), "constants": {"bladder_volume_m3": 1e-11}},
+        [r"key 'bladder_volume_m3' = 1e-11 m\^3 gives a bladder wall", r"thinner than any bladder"],
+    ),
     ("clamp without room", edited(geometry__clamp_outer_diameter_m=0.0213), [r"clamp"]),
     # not JSON, not a muscle file
     ("format missing", edited(format=DELETE), [r"'format' must be"]),

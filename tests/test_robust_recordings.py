@@ -88,6 +88,17 @@ PARSE_CASES = [
     ("unknown unit", good_text().replace("pressure_kPa", "pressure_kpa", 1), r"unknown pressure unit 'kpa'"),
     ("length in kPa", good_text().replace("length_m", "length_kPa", 1), r"unknown length unit"),
     ("unknown column", good_text().replace("force_N", "forse_N", 1), r"unknown column 'forse_N'"),
+    # a header cell is quoted escaped and cut: no terminal escape sequence reaches the screen
+    (
+        "escape sequence in a header",
+        good_text().replace("force_N", "\x1b]0;title\x07\x1b[31mforce", 1),
+        r"unknown column '\\x1b\]0;title\\x07\\x1b\[31mforce'",
+    ),
+    (
+        "a 5000-byte header cell",
+        good_text().replace("force_N", "F" * 5000, 1),
+        r"unknown column 'F{40}\.\.\.'",
+    ),
     ("two force columns", good_text().replace(HEADER, HEADER + ",tension_N", 1), r"both give the force"),
     ("missing force", good_text().replace(",force_N", "", 1), r"missing a force column|fields"),
     ("empty header cell", good_text().replace("force_N", "", 1), r"empty header"),
@@ -204,6 +215,19 @@ PLAUSIBILITY_CASES = [
         good_text().replace("force_N", "tension_N", 1),
         "force-sign",
         r"column 'tension_N'.*sign the other way round",
+    ),
+    # a force that does not follow length and pressure at all: any muscle's force does
+    (
+        "force channel of noise",
+        replaced(3, np.random.default_rng(1).normal(0.0, 30.0, N)),
+        "force-model",
+        r"column 'force_N'.*does not follow the muscle's length and pressure",
+    ),
+    (
+        "force rows shuffled",
+        replaced(3, np.random.default_rng(2).permutation(good_rows()[:, 3])),
+        "force-model",
+        r"correlation -?0\.\d\d",
     ),
     ("time in ms labelled s", scaled(0, 1000.0), "time-unit", r"time_ms"),
     ("time in us labelled s", scaled(0, 1e6), "time-unit", r"sample interval"),

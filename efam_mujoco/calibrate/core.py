@@ -52,9 +52,11 @@ class Calibration:
         return self.fits[self.best_law].muscle
 
     def to_json(self) -> dict:
-        """The summary: {"deadband_kPa", "theta_rest_deg", "laws": {...}, "best_law"}."""
+        """The summary: {"deadband_kPa" (the calibrated muscle's), "blocked_deadband_kPa" (the
+        Sec. 4.3 estimate), "theta_rest_deg", "laws": {...}, "best_law"}."""
         return {
-            "deadband_kPa": self.deadband_Pa / 1e3,
+            "deadband_kPa": self.muscle.deadband_Pa / 1e3,
+            "blocked_deadband_kPa": self.deadband_Pa / 1e3,
             "theta_rest_deg": self.theta_rest_deg,
             "laws": {
                 law: {
@@ -73,7 +75,8 @@ class Calibration:
         """A muscle file with every fitted law, the best one as default."""
         laws = {law: fit.stress for law, fit in self.fits.items()}
         summary = {
-            "deadband_kPa": self.deadband_Pa / 1e3,
+            "deadband_kPa": self.muscle.deadband_Pa / 1e3,
+            "blocked_deadband_kPa": self.deadband_Pa / 1e3,
             "theta_rest_deg": self.theta_rest_deg,
             "theta_rest_deg_before": self.geometry_theta_rest_deg,
             "best_law": self.best_law,

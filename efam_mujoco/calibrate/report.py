@@ -82,6 +82,13 @@ def summary(cal: Calibration) -> str:
             f"{cal.deadband_Pa / 1e3:.2f} kPa, theta_rest {cal.theta_rest_deg:.3f} deg (muscle file had "
             f"{cal.geometry_theta_rest_deg:.3f} deg), line RMS {b.rms_N:.3f} N, outliers rejected: "
             f"{', '.join(rejected) if rejected else 'none'}",
+            *(
+                [
+                    f"dead band fitted with the laws (--fit-deadband): {cal.muscle.deadband_Pa / 1e3:.2f} kPa, the value written"
+                ]
+                if abs(cal.muscle.deadband_Pa - cal.deadband_Pa) > 1e-3 * max(cal.deadband_Pa, 1.0)
+                else []
+            ),
             f"best law (smallest held-out RMS; fewest coefficients within 1 %): {cal.best_law}; "
             f"calibration took {cal.seconds:.2f} s",
         ]

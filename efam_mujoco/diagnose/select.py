@@ -75,6 +75,26 @@ class Fit:
         return self.chi2(noise) + self.k * math.log(n)
 
 
+def _nearest_positive_definite(Gs: np.ndarray) -> np.ndarray:
+    """A unit-diagonal normal matrix that rounding left indefinite, made positive definite: a
+    ridge first, and where that is not enough its eigenvalues floored (a training fold's matrix
+    is the total less the held-out fold's, and a column whose size sits nearly all in one fold,
+    e.g. a drift's accelerating course on a test hours long, loses its digits in that
+    difference)."""
+    ridged = Gs + 1e-6 * np.eye(len(Gs))
+    try:
+        cho_factor(ridged)
+        return ridged
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (Gs + Gs.T))
+        w = np.maximum(w, 1e-6 * max(float(w.max()), 1.0))
+        return (V * w) @ V.T
+
+
+#: the lowest noise floor (N): see ``noise_floor``
+MIN_NOISE_N = 1e-6
+
+
 class Engine:
     """Normal-equation blocks per fold for the base model, and candidate fits on top."""
 
@@ -116,10 +136,15 @@ class Engine:
         d = np.sqrt(np.diag(G))
         Gs = G / np.outer(d, d) + 1e-10 * np.eye(len(d))
         bs = b / d
+        if not (np.all(np.isfinite(Gs)) and np.all(np.isfinite(bs))):
+            raise ArithmeticError(
+                "the fit's normal equations overflowed (a candidate term grew beyond double precision over "
+                "this test): check the time column's unit and the test's duration"
+            )
         try:
             c = cho_factor(Gs)
         except np.linalg.LinAlgError:
-            Gs = Gs + 1e-6 * np.eye(len(d))
+            Gs = _nearest_positive_definite(Gs)
             c = cho_factor(Gs)
         free = cho_solve(c, bs) / d
         if np.all(free >= lo - 1e-12) and np.all(free <= hi + 1e-12):
@@ -132,7 +157,9 @@ class Engine:
 
     @staticmethod
     def _rss(G, b, yy, theta):
-        return float(yy - 2 * theta @ b + theta @ G @ theta)
+        # a sum of squares expanded on the normal equations can round below zero when the fit
+        # is near exact (a constant recording): it is zero then
+        return max(float(yy - 2 * theta @ b + theta @ G @ theta), 0.0)
 
     def _design(self, effects: list[Effect], shapes: list[dict]):
         """Stacked effect columns (scaled), fixed force, bounds, and column bookkeeping."""
@@ -355,7 +382,9 @@ def noise_floor(measured: float, fits: list[Fit]) -> float:
     held-out RMS in 32 of 48, by up to 25 % (30 Hz strokes), and a real effect of a third of the
     noise then had no excess to remove (a braid stretch named `none` after the next experiment)."""
     heldout = [f.heldout_rms for f in fits if math.isfinite(f.heldout_rms) and f.heldout_rms > 0]
-    return min([measured] + heldout)
+    # a noise-free recording (a simulation's output, a channel quantised to one value) still
+    # gets a floor: a micronewton, below any load cell's resolution, so that chi-squares stay finite
+    return max(min([measured] + heldout), MIN_NOISE_N)
 
 
 def search(engine: Engine, names: tuple[str, ...], max_effects: int = 2):
