@@ -115,6 +115,8 @@ def _file_args(args) -> tuple[dict, dict]:
         names_out = names_out(args)
 
     def flag(name):
+        if name == "recording":
+            return "RECORDING"
         return "FILE" if name in ("files", "file") else "--" + name.replace("_", "-")
 
     def existing(value):  # a preset name (FAM1) is not a file

@@ -176,6 +176,10 @@ def installed_package_dirs() -> list[Path]:
     return sorted(dirs)
 
 
+#: the output flags that name a folder (every other output is a file, and a folder there is refused)
+FOLDER_OUTPUTS = ("--out", "--report", "--models-dir")
+
+
 def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
     """Refuse outputs that would overwrite an input or each other, or land in the package.
 
@@ -188,7 +192,7 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
     package = installed_package_dirs()
     for i, (label, out) in enumerate(outs):
         if not str(out).strip() or str(out) in (".", ".."):
-            if label not in ("--out", "--report", "--models-dir"):
+            if label not in FOLDER_OUTPUTS:
                 raise OutputError(f"{label}: '{out}' is not a file name")
         for in_label, source in ins:
             if _same_file(out, source) or (out.is_dir() and _inside(source, out)):
@@ -199,9 +203,10 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
         for other_label, other in outs[:i]:
             if _same_file(out, other):
                 raise OutputError(f"{other_label} and {label} are the same file ({out}); give two paths")
-        if label == "--json" and out.is_dir():
+        if label not in FOLDER_OUTPUTS and out.is_dir():
             raise OutputError(
-                f"{label} {out}: is a folder, not a file; give a file name (e.g. {out / 'result.json'})"
+                f"{label} {out}: is a folder, not a file; give a file name (e.g. "
+                f"{out / ('figure.png' if label in ('--figure', '--strip') else 'result.json')})"
             )
         _check_writable_place(label, out)
         for folder in package:

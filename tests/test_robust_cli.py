@@ -234,6 +234,41 @@ OVERWRITES = [
         ["diagnose", "rec.csv", "--muscle", "FAM1", "--report", "notes.txt/r"],
         r"--report notes\.txt/r: notes\.txt is a file",
     ),
+    # verbs whose file flags were not declared: their outputs overwrote their inputs, and a
+    # figure asked into a folder was written beside it as <folder>.png
+    (
+        [
+            "size",
+            "--stroke",
+            "0.5",
+            "--force",
+            "0",
+            "--pressure",
+            "300",
+            "--stress-from",
+            "muscle.json",
+            "--json",
+            "muscle.json",
+        ],
+        r"--json muscle\.json would overwrite the input --stress-from muscle\.json",
+    ),  # fmt: skip
+    (
+        ["size", "--stroke", "0.5", "--force", "0", "--pressure", "300", "--figure", "sub"],
+        r"--figure sub: is a folder",
+    ),
+    (
+        ["diagnose-arm", "rec.csv", "--model", "muscle.json", "--json", "rec.csv"],
+        r"--json rec\.csv would overwrite the input RECORDING rec\.csv",
+    ),
+    (
+        ["diagnose-arm", "rec.csv", "--model", "muscle.json", "--json", "muscle.json"],
+        r"--json muscle\.json would overwrite the input --model muscle\.json",
+    ),
+    (
+        ["diagnose-arm", "rec.csv", "--model", "sub/arm.xml", "--report", "sub"],
+        r"--report sub would overwrite the input --model sub/arm\.xml",
+    ),
+    (["suite", "--episodes", "1", "--strip", "sub"], r"--strip sub: is a folder"),
     (["--mujoco-log", "sub", "muscle", "FAM1"], r"--mujoco-log: 'sub' is not a file name"),
     (["--mujoco-log", "", "muscle", "FAM1"], r"--mujoco-log: '' is not a file name"),
 ]
@@ -243,6 +278,7 @@ OVERWRITES = [
 def test_an_output_never_overwrites_an_input(folder, capsys, argv, pattern):
     (folder / "link.json").symlink_to(folder / "muscle.json")
     (folder / "sub").mkdir()
+    (folder / "sub" / "arm.xml").write_text("<mujoco/>\n")  # an input inside an output folder
     (folder / "userdir").mkdir()
     (folder / "userdir" / "precious.csv").write_text("1,2\n")
     (folder / "rec.csv_blocked.png").write_bytes(b"not really")  # an input-like figure name

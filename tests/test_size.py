@@ -266,6 +266,11 @@ def test_cli_infeasible_exits_1_with_relaxation(capsys):
             ["--stroke", "0.5", "--force", "10", "--pressure", "400", "--bundle", "2"],
             "--bundle needs at least 3",
         ),
+        # a thousand muscles in a section searched for minutes (the arm builder stops at 24)
+        (
+            ["--stroke", "0.5", "--force", "10", "--pressure", "400", "--bundle", "1000"],
+            "--bundle takes at most 24 muscles",
+        ),
         (["--stroke", "0.5", "--force", "10", "--pressure", "400", "--length", "17"], "--length must be in"),
         (["--str", "0.5", "--force", "10", "--pressure", "400"], "--stroke"),  # no abbreviations
         (["--force", "10", "--pressure", "400"], "--stroke"),

@@ -34,6 +34,10 @@ def _number(flag: str, unit: str, low: float, high: float, low_open: bool = True
     return parse
 
 
+#: the most muscles a bundle's section may hold (``efam arm --muscles-per-section``'s bound)
+MAX_BUNDLE = 24
+
+
 def _count(text: str) -> int:
     try:
         value = int(text)
@@ -41,6 +45,11 @@ def _count(text: str) -> int:
         raise argparse.ArgumentTypeError(f"--bundle takes a whole number of muscles, got {text!r}") from None
     if value < 3:
         raise argparse.ArgumentTypeError(f"--bundle needs at least 3 muscles in a section, got {value}")
+    if value > MAX_BUNDLE:
+        # the arm builder's own limit; a thousand took minutes to search
+        raise argparse.ArgumentTypeError(
+            f"--bundle takes at most {MAX_BUNDLE} muscles in a section, got {value}"
+        )
     return value
 
 
@@ -93,7 +102,7 @@ def register_cli(subparsers) -> None:
     )
     p.add_argument("--figure", metavar="FILE", default=None,
                    help="write the force-stroke envelope figure (PNG) (default: none)")  # fmt: skip
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, file_inputs=("stress_from", "catalogue"), file_outputs=("json", "figure"))
 
 
 def run(args) -> int:

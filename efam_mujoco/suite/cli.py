@@ -128,7 +128,7 @@ def register_cli(subparsers) -> None:
         description=__doc__.splitlines()[0],
     )
     _add_arguments(parser)
-    parser.set_defaults(run=_run)
+    parser.set_defaults(run=_run, file_outputs=("json", "strip"))
 
 
 def main(argv=None) -> int:
