@@ -16,7 +16,14 @@ from ..files import write_json_atomic, write_text_atomic
 from ..musclefile import load_muscle
 from .builder import MODELS_DIR, arm_xml, build_model, static_equilibrium, tip_in_base, write_models
 from .continuum import solve_arm_spec
-from .spec import DEFAULT_DISKS, MAX_TESTED_PRESSURE_PA, ORIENTATIONS, ArmSpec, SectionSpec
+from .spec import (
+    DEFAULT_DISKS,
+    MAX_MUSCLES_PER_SECTION,
+    MAX_TESTED_PRESSURE_PA,
+    ORIENTATIONS,
+    ArmSpec,
+    SectionSpec,
+)
 from .timestep import NUMERIC_NAME, recorded_timestep
 
 
@@ -49,7 +56,7 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
 #: control range (the continuum column would not). ``dest: (low, high, unit)``.
 ARGUMENT_BOUNDS = {
     "sections": (1, 20, ""),
-    "muscles_per_section": (3, 24, ""),
+    "muscles_per_section": (3, MAX_MUSCLES_PER_SECTION, ""),
     "disks": (1, 40, ""),
     "radius_mm": (1.0, 500.0, "mm"),
     "payload_kg": (0.0, 50.0, "kg"),

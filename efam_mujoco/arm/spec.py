@@ -22,6 +22,8 @@ MAX_TESTED_PRESSURE_PA = 75 * PSI
 DEFAULT_CLEARANCE = 0.1
 #: spacer disks per section when none is given: from the convergence table in docs/arms.md
 DEFAULT_DISKS = 8
+#: the most muscles one section's bundle may hold (``efam arm`` and ``efam size --bundle``)
+MAX_MUSCLES_PER_SECTION = 24
 
 ORIENTATIONS = {
     # quaternion (w, x, y, z) turning the base frame's z (the arm axis) to the named direction

@@ -75,20 +75,20 @@ class Fit:
         return self.chi2(noise) + self.k * math.log(n)
 
 
-def _nearest_positive_definite(Gs: np.ndarray) -> np.ndarray:
-    """A unit-diagonal normal matrix that rounding left indefinite, made positive definite: a
-    ridge first, and where that is not enough its eigenvalues floored (a training fold's matrix
-    is the total less the held-out fold's, and a column whose size sits nearly all in one fold,
-    e.g. a drift's accelerating course on a test hours long, loses its digits in that
-    difference)."""
+def _nearest_positive_definite(Gs: np.ndarray):
+    """A unit-diagonal normal matrix that rounding left indefinite, made positive definite, with
+    its Cholesky factor: a ridge first, and where that is not enough its eigenvalues floored (a
+    training fold's matrix is the total less the held-out fold's, and a column whose size sits
+    nearly all in one fold, e.g. a drift's accelerating course on a test hours long, loses its
+    digits in that difference). Returns (matrix, ``cho_factor`` of it)."""
     ridged = Gs + 1e-6 * np.eye(len(Gs))
     try:
-        cho_factor(ridged)
-        return ridged
+        return ridged, cho_factor(ridged)
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(0.5 * (Gs + Gs.T))
         w = np.maximum(w, 1e-6 * max(float(w.max()), 1.0))
-        return (V * w) @ V.T
+        floored = (V * w) @ V.T
+        return floored, cho_factor(floored)
 
 
 #: the lowest noise floor (N): see ``noise_floor``
@@ -144,8 +144,7 @@ class Engine:
         try:
             c = cho_factor(Gs)
         except np.linalg.LinAlgError:
-            Gs = _nearest_positive_definite(Gs)
-            c = cho_factor(Gs)
+            Gs, c = _nearest_positive_definite(Gs)
         free = cho_solve(c, bs) / d
         if np.all(free >= lo - 1e-12) and np.all(free <= hi + 1e-12):
             theta[live] = free

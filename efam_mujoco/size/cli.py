@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..arm.spec import MAX_MUSCLES_PER_SECTION
 from ..files import write_json_atomic
 from ..musclefile import MuscleFileError
 from ..stress import LAW_NAMES, StressLawError
@@ -34,10 +35,6 @@ def _number(flag: str, unit: str, low: float, high: float, low_open: bool = True
     return parse
 
 
-#: the most muscles a bundle's section may hold (``efam arm --muscles-per-section``'s bound)
-MAX_BUNDLE = 24
-
-
 def _count(text: str) -> int:
     try:
         value = int(text)
@@ -45,10 +42,10 @@ def _count(text: str) -> int:
         raise argparse.ArgumentTypeError(f"--bundle takes a whole number of muscles, got {text!r}") from None
     if value < 3:
         raise argparse.ArgumentTypeError(f"--bundle needs at least 3 muscles in a section, got {value}")
-    if value > MAX_BUNDLE:
+    if value > MAX_MUSCLES_PER_SECTION:
         # the arm builder's own limit; a thousand took minutes to search
         raise argparse.ArgumentTypeError(
-            f"--bundle takes at most {MAX_BUNDLE} muscles in a section, got {value}"
+            f"--bundle takes at most {MAX_MUSCLES_PER_SECTION} muscles in a section, got {value}"
         )
     return value
 
