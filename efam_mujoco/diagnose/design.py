@@ -99,15 +99,38 @@ class Experiment:
 
 
 class _Prog:
+    """A protocol written as moves: each ``go`` reaches its length and pressure set points
+    linearly over ``dt`` seconds (at least 1 ms), starting vented at length ``L0``."""
+
     def __init__(self, L0):
         self.t, self.L, self.P = [0.0], [L0], [0.0]
 
     def go(self, dt, L=None, P=None):
+        """Move to ``L`` (m) and ``P`` (Pa), each unchanged when None, over ``dt`` s."""
         self.t.append(self.t[-1] + max(dt, 1e-3))
         self.L.append(self.L[-1] if L is None else L)
         self.P.append(self.P[-1] if P is None else P)
 
+    def pressure_cycle(self, P_top, up_s, hold_s, down_s, after_s):
+        """Isometric: ramp to ``P_top`` over ``up_s``, hold, vent over ``down_s``, wait ``after_s``."""
+        self.go(up_s, P=P_top)
+        self.go(hold_s)
+        self.go(down_s, P=0.0)
+        self.go(after_s)
+
+    def strokes(self, P, L_far, L_near, stroke_s, dwell_s, times=1, settle_s=5.0):
+        """Step to pressure ``P`` and settle, then ``times`` strokes to ``L_far`` and back to
+        ``L_near`` (``stroke_s`` each way), dwelling ``dwell_s`` at each end (None: no dwell)."""
+        self.go(0.001, P=P)
+        self.go(settle_s)
+        for _ in range(times):
+            for L in (L_far, L_near):
+                self.go(stroke_s, L=L)
+                if dwell_s is not None:
+                    self.go(dwell_s)
+
     def done(self, name, words) -> Experiment:
+        """The protocol as an ``Experiment`` called ``name``, described by ``words``."""
         return Experiment(name, words, np.array(self.t), np.array(self.L), np.array(self.P))
 
 
@@ -117,126 +140,64 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     L_lo, L_hi = float(np.percentile(ctx.L, 1)), float(np.percentile(ctx.L, 99))
     P_top = max(float(np.percentile(ctx.P, 99)), 50e3)
     v = max(speed_m_per_s, 1e-3)
+    kPa, lo_mm, hi_mm = f"{P_top / 1e3:.0f}", f"{L_lo * 1e3:.0f}", f"{L_hi * 1e3:.0f}"
     out = []
+
+    def new(L0=L_lo) -> _Prog:
+        p = _Prog(L0)
+        p.go(2)  # every test starts with 2 s vented at the shortest recorded length
+        return p
+
     # pressure-only tests at the shortest recorded length: always inside what the data covered
-    p = _Prog(L_lo)
-    p.go(2)
-    p.go(20, P=P_top)
-    p.go(60)
-    p.go(20, P=0.0)
-    p.go(30)
-    out.append(
-        p.done(
-            "pressure_hold",
-            f"isometric ramp to {P_top / 1e3:.0f} kPa, held 60 s, vented, 30 s at {L_lo * 1e3:.0f} mm",
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
+    p = new()
+    p.pressure_cycle(P_top, 20, 60, 20, 30)
+    out.append(p.done("pressure_hold", f"isometric ramp to {kPa} kPa, held 60 s, vented, 30 s at {lo_mm} mm"))
+    p = new()
     for _ in range(3):
-        p.go(3, P=P_top)
-        p.go(1)
-        p.go(3, P=0.0)
-        p.go(1)
-    out.append(
-        p.done(
-            "fast_ramps",
-            f"three fast isometric ramps 0-{P_top / 1e3:.0f}-0 kPa (3 s each way) at {L_lo * 1e3:.0f} mm",
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
+        p.pressure_cycle(P_top, 3, 1, 3, 1)
+    out.append(p.done("fast_ramps", f"three fast isometric ramps 0-{kPa}-0 kPa (3 s each way) at {lo_mm} mm"))
+    p = new()
     for k in list(range(1, 9)) + list(range(7, -1, -1)):
         p.go(0.001, P=P_top * k / 8)
         p.go(3)
     out.append(
         p.done(
-            "staircase_rest",
-            f"pressure staircase 8 steps to {P_top / 1e3:.0f} kPa and down, 3 s holds, at {L_lo * 1e3:.0f} mm",
+            "staircase_rest", f"pressure staircase 8 steps to {kPa} kPa and down, 3 s holds, at {lo_mm} mm"
         )
     )
     if L_hi - L_lo < 0.05 * rest:
         return out  # an isometric test: strokes would ask the models where no data constrained them
     stroke = (L_hi - L_lo) / v
-    p = _Prog(L_lo)
-    p.go(2)
-    p.go(0.001, P=P_top)
-    p.go(5)
-    for _ in range(2):
-        p.go(stroke, L=L_hi)
-        p.go(3)
-        p.go(stroke, L=L_lo)
-        p.go(3)
-    out.append(
-        p.done(
-            "repeat_top", f"at {P_top / 1e3:.0f} kPa, two slow strokes {L_lo * 1e3:.0f}-{L_hi * 1e3:.0f} mm"
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
+    p = new()
+    p.strokes(P_top, L_hi, L_lo, stroke, 3, times=2)
+    out.append(p.done("repeat_top", f"at {kPa} kPa, two slow strokes {lo_mm}-{hi_mm} mm"))
+    p = new()
     for f in (1.0, 2 / 3, 1 / 3):
-        p.go(0.001, P=f * P_top)
-        p.go(5)
-        p.go(stroke, L=L_hi)
-        p.go(3)
-        p.go(stroke, L=L_lo)
-        p.go(3)
-    out.append(
-        p.done(
-            "descending",
-            f"pressures {P_top / 1e3:.0f}, {2 * P_top / 3e3:.0f}, {P_top / 3e3:.0f} kPa in this order, one stroke each",
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
+        p.strokes(f * P_top, L_hi, L_lo, stroke, 3)
+    levels = f"{kPa}, {2 * P_top / 3e3:.0f}, {P_top / 3e3:.0f}"
+    out.append(p.done("descending", f"pressures {levels} kPa in this order, one stroke each"))
+    p = new()
     p.go(0.001, P=P_top)
     p.go(5)
     p.go(stroke / 3, L=L_hi)
     p.go(60)
     p.go(stroke / 3, L=L_lo)
     p.go(30)
-    out.append(
-        p.done(
-            "long_hold",
-            f"at {P_top / 1e3:.0f} kPa, a stroke held 60 s at {L_hi * 1e3:.0f} mm, then 30 s back",
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
+    out.append(p.done("long_hold", f"at {kPa} kPa, a stroke held 60 s at {hi_mm} mm, then 30 s back"))
+    p = new()
     for f in (0.5, 1.0):
-        p.go(0.001, P=f * P_top)
-        p.go(5)
-        for _ in range(2):
-            p.go(stroke / 4, L=L_hi)
-            p.go(1)
-            p.go(stroke / 4, L=L_lo)
-            p.go(1)
+        p.strokes(f * P_top, L_hi, L_lo, stroke / 4, 1, times=2)
     out.append(
-        p.done(
-            "fast",
-            f"strokes 4x faster ({4 * v * 1e3:.0f} mm/s) at {P_top / 2e3:.0f} and {P_top / 1e3:.0f} kPa",
-        )
+        p.done("fast", f"strokes 4x faster ({4 * v * 1e3:.0f} mm/s) at {P_top / 2e3:.0f} and {kPa} kPa")
     )
     L_mid = L_lo + 0.6 * (L_hi - L_lo)
-    p = _Prog(L_lo)
-    p.go(2)
+    p = new()
     p.go(abs(L_mid - L_lo) / v, L=L_mid)
     p.go(3)
-    p.go(20, P=P_top)
-    p.go(2)
-    p.go(20, P=0.0)
-    p.go(3)
-    out.append(
-        p.done(
-            "ramp_at_length", f"isometric ramp 0-{P_top / 1e3:.0f}-0 kPa over 40 s at {L_mid * 1e3:.0f} mm"
-        )
-    )
-    p = _Prog(L_lo)
-    p.go(2)
-    p.go(0.001, P=P_top / 2)
-    p.go(5)
-    p.go(stroke, L=L_hi)
-    p.go(stroke, L=L_lo)
+    p.pressure_cycle(P_top, 20, 2, 20, 3)
+    out.append(p.done("ramp_at_length", f"isometric ramp 0-{kPa}-0 kPa over 40 s at {L_mid * 1e3:.0f} mm"))
+    p = new()
+    p.strokes(P_top / 2, L_hi, L_lo, stroke, None)
     p.go(300)
     p.go(stroke, L=L_hi)
     p.go(stroke, L=L_lo)
