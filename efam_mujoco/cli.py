@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import os
+import re
 import signal
 import sys
 import warnings
@@ -70,7 +72,11 @@ class _ExactSubparsers:
         kwargs.setdefault("allow_abbrev", False)
         kwargs.setdefault("formatter_class", _HelpFormatter)
         kwargs["allow_abbrev"] = False
-        return self._action.add_parser(name, **kwargs)
+        parser = self._action.add_parser(name, **kwargs)
+        # every type=float / type=int flag reads plain ASCII decimals, as the recordings do
+        parser.register("type", float, plain_float)
+        parser.register("type", int, plain_int)
+        return parser
 
     def __getattr__(self, name):
         return getattr(self._action, name)
@@ -151,6 +157,45 @@ def check_argument_bounds(args) -> None:
                     f"{flag}: {v:g}{u} is outside {low:g} .. {high:g}{u}"
                     + (" (the actuators' control range: MuJoCo would clamp it)" if unit == "kPa" else "")
                 )
+
+
+_DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", re.ASCII)
+_WHOLE = re.compile(r"[+-]?\d+", re.ASCII)
+
+
+def plain_float(text: str) -> float:
+    """An argparse type: a finite number written as a plain ASCII decimal (``0.5``, ``-2e3``).
+    Python's ``float`` also reads ``1_000``, other scripts' digits (``７５``), ``nan`` and
+    ``inf``, none of which a user means as a pressure or a length."""
+    if not _DECIMAL.fullmatch(text.strip()):
+        raise argparse.ArgumentTypeError(f"takes a plain decimal number (like 0.5 or 2e3), got {text!r}")
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"takes a finite number, got {text!r}")
+    return value
+
+
+def plain_int(text: str) -> int:
+    """An argparse type: a whole number written in plain ASCII digits."""
+    if not _WHOLE.fullmatch(text.strip()):
+        raise argparse.ArgumentTypeError(f"takes a whole number in plain digits, got {text!r}")
+    return int(text)
+
+
+def bounded_int(low: int, high: int, what: str = ""):
+    """An argparse type: a whole number in ``low .. high``; otherwise argparse's usage error,
+    which names the flag (``efam suite: error: argument --seed: must be ...``), before anything
+    runs, instead of a library's message (numpy's for a negative seed) or hours of work for a
+    huge count."""
+
+    def parse(text: str) -> int:
+        value = plain_int(text)
+        if not low <= value <= high:
+            about = f" ({what})" if what else ""
+            raise argparse.ArgumentTypeError(f"must be a whole number in {low} .. {high}{about}, got {value}")
+        return value
+
+    return parse
 
 
 def _quiet_broken_pipe() -> None:

@@ -22,6 +22,7 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -123,10 +124,49 @@ def write_json_atomic(path: str | os.PathLike, doc) -> Path:
     return write_text_atomic(path, strict_json(doc))
 
 
+#: Figure formats matplotlib writes with its built-in backends (``FigureCanvasBase.
+#: get_supported_filetypes()`` of matplotlib 3.7-3.10); used when matplotlib is not importable.
+FIGURE_FORMATS = (
+    "eps", "jpeg", "jpg", "pdf", "pgf", "png", "ps", "raw", "rgba", "svg", "svgz", "tif", "tiff", "webp",
+)  # fmt: skip
+#: The output flags that name a figure file: checked (format, matplotlib) before a command runs.
+FIGURE_OUTPUTS = ("--figure", "--strip")
+
+
+def figure_formats() -> tuple[str, ...]:
+    """The file suffixes (lower case, no dot) a figure can be written as: matplotlib's own list
+    when it is installed, else :data:`FIGURE_FORMATS`."""
+    try:
+        from matplotlib.backend_bases import FigureCanvasBase
+    except ImportError:
+        return FIGURE_FORMATS
+    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+
+
+def check_figure_path(label: str, path: str | os.PathLike) -> None:
+    """Refuse a figure path whose suffix matplotlib cannot write (``x.txt``, ``x.json``), and a
+    figure when matplotlib is missing, naming the flag: found before the work, not after it.
+    A path without a suffix is written as PNG (:func:`save_figure`)."""
+    import importlib.util
+
+    suffix = Path(path).suffix[1:].lower()
+    formats = figure_formats()
+    if suffix and suffix not in formats:
+        raise OutputError(
+            f"{label} {path}: '.{suffix}' is not a figure format; use one of "
+            f"{', '.join('.' + f for f in formats)} (e.g. .png, .pdf, .svg)"
+        )
+    if importlib.util.find_spec("matplotlib") is None:
+        raise OutputError(f"{label} {path}: writing a figure needs matplotlib (pip install matplotlib)")
+
+
 def save_figure(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
     """``fig.savefig`` into a unique temporary beside ``path``, then rename: a failed or killed
-    write never leaves a truncated image. The format follows ``path``'s suffix."""
+    write never leaves a truncated image. The format follows ``path``'s suffix (PNG without one);
+    a suffix matplotlib cannot write is an :class:`OutputError` before anything is written."""
     path = Path(path)
+    if "format" not in savefig_kwargs:
+        check_figure_path("figure", path)
     fmt = savefig_kwargs.pop("format", None) or (path.suffix[1:].lower() or "png")
     fd, tmp = _temporary_beside(path, suffix=path.suffix)
     os.close(fd)
@@ -168,8 +208,11 @@ def _inside(path: Path, folder: Path) -> bool:
 
 def installed_package_dirs() -> list[Path]:
     """Folders a command must never write into: the interpreter's ``site-packages`` folders,
-    where an installed ``efam_mujoco`` lives (an editable checkout is not among them)."""
-    dirs = set()
+    where an installed ``efam_mujoco`` lives, and the ``efam_mujoco`` package folder itself
+    (in an editable checkout too: its presets are inputs a preset name reads, ``--json`` over
+    ``efam_mujoco/presets/fam1.json`` replaced FAM1 for every later command). The rest of a
+    checkout (``models/``, ``bench/``) may be written."""
+    dirs = {Path(__file__).resolve().parent}
     for key in ("purelib", "platlib"):
         with contextlib.suppress(KeyError):
             dirs.add(Path(sysconfig.get_paths()[key]).resolve())
@@ -208,6 +251,8 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
                 f"{label} {out}: is a folder, not a file; give a file name (e.g. "
                 f"{out / ('figure.png' if label in ('--figure', '--strip') else 'result.json')})"
             )
+        if label in FIGURE_OUTPUTS:
+            check_figure_path(label, out)
         _check_writable_place(label, out)
         for folder in package:
             if _inside(out, folder):
@@ -237,17 +282,84 @@ def _paths(value) -> list:
 
 
 # ---------------------------------------------------------------------------- report folders
-def check_replaceable_folder(path: str | os.PathLike, label: str = "output folder") -> Path:
-    """Refuse a folder that exists and is neither empty nor a previous efam report (it would be
-    replaced as a whole), and a path that is a file."""
+#: the marker's first line; the lines after it list what the report wrote: "<sha256>  <path>"
+_MARKER_HEADER = "written by efam_mujoco; this folder is replaced as a whole; its files:"
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _report_files(folder: Path) -> dict[str, Path]:
+    """Every entry below ``folder`` but the marker, by its path relative to it ('/'-separated);
+    folders end with '/'."""
+    out = {}
+    for entry in sorted(folder.rglob("*")):
+        relative = entry.relative_to(folder).as_posix()
+        if relative != REPORT_MARKER:
+            out[relative + ("/" if entry.is_dir() and not entry.is_symlink() else "")] = entry
+    return out
+
+
+def _write_marker(folder: Path) -> None:
+    """The marker, listing every file of the report with its sha256 (what may be replaced)."""
+    lines = [_MARKER_HEADER]
+    for relative, entry in _report_files(folder).items():
+        if not relative.endswith("/"):
+            lines.append(f"{_digest(entry)}  {relative}")
+    (folder / REPORT_MARKER).write_text("\n".join(lines) + "\n")
+
+
+def _not_the_reports(folder: Path) -> str:
+    """What in ``folder`` is not the report its marker lists, unchanged ('' when nothing): a file
+    the user added or edited there is the user's, and the folder is then not replaced."""
+    text = (folder / REPORT_MARKER).read_text(errors="replace").splitlines()
+    if not text or text[0] != _MARKER_HEADER:
+        return f"its {REPORT_MARKER} lists no report files (hand-made, or from an older efam_mujoco)"
+    listed = dict(reversed(line.split("  ", 1)) for line in text[1:] if "  " in line)
+    for relative, entry in _report_files(folder).items():
+        if relative.endswith("/"):
+            continue
+        if relative not in listed:
+            return f"{relative} is not a file the report wrote"
+        if entry.is_symlink() or not entry.is_file() or _digest(entry) != listed[relative]:
+            return f"{relative} was changed after the report wrote it"
+    return ""
+
+
+def _real_folder(path: str | os.PathLike) -> Path:
+    """``path``, or the folder it links to: a report goes where the link points, the link kept."""
     path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def check_replaceable_folder(path: str | os.PathLike, label: str = "output folder") -> Path:
+    """Refuse a folder that exists and is neither empty nor an untouched previous efam report
+    (its marker lists every file in it, unchanged: it would be replaced as a whole), and a path
+    that is a file. Returns the folder to write (a link's target)."""
+    given = Path(path)
+    path = _real_folder(given)
+    if given.is_symlink() and not path.exists():
+        raise OutputError(f"{label} {given} is a link to {path}, which does not exist")
     if path.exists() and not path.is_dir():
-        raise OutputError(f"{label} {path} is a file, not a folder")
-    if path.is_dir() and any(path.iterdir()) and not (path / REPORT_MARKER).is_file():
-        raise OutputError(
-            f"{label} {path} exists, is not empty and is not an efam report folder (no "
-            f"{REPORT_MARKER}); it would be replaced as a whole, so name a new or empty folder"
-        )
+        raise OutputError(f"{label} {given} is a file, not a folder")
+    if path.is_dir() and _inside(Path.cwd(), path):
+        raise OutputError(f"{label} {given} is the folder you are in (or holds it): name a folder inside it")
+    if path.is_dir() and any(path.iterdir()):
+        if not (path / REPORT_MARKER).is_file():
+            why = f"is not an efam report folder (no {REPORT_MARKER})"
+        else:
+            why = _not_the_reports(path)
+            why = f"is not only an efam report: {why}" if why else ""
+        if why:
+            raise OutputError(
+                f"{label} {given} exists, is not empty and {why}; it would be replaced as a whole, so name "
+                "a new or empty folder (or move your files out)"
+            )
     return path
 
 
@@ -257,15 +369,15 @@ def replace_folder(path: str | os.PathLike, label: str = "output folder"):
     whole (the previous report is removed only after the new one is in place); on any failure
     remove the temporary and leave ``path`` as it was. Yields the temporary folder to fill.
 
-    A folder with other contents than a previous report is refused (see
-    :func:`check_replaceable_folder`).
+    A folder with other contents than an untouched previous report is refused (see
+    :func:`check_replaceable_folder`); a link to a folder is followed (the link is kept).
     """
     path = check_replaceable_folder(path, label)
     path.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".efam-tmp", dir=path.parent))
     try:
         yield staging
-        (staging / REPORT_MARKER).write_text("written by efam_mujoco; this folder is replaced as a whole\n")
+        _write_marker(staging)
         os.chmod(staging, 0o777 & ~_umask())
         old = None
         if path.exists():
@@ -296,6 +408,12 @@ def route_mujoco_log(path: str | os.PathLike | None = None) -> None:
     standard error; MuJoCo then never writes ``MUJOCO_LOG.TXT`` into the working folder."""
     import mujoco
 
+    if path is not None:
+        try:  # found now, not as warnings silently lost later: a missing folder, no permission
+            with open(path, "a", encoding="utf-8"):
+                pass
+        except OSError as err:
+            raise OutputError(f"--mujoco-log {path}: cannot append to it ({err.strerror})") from None
     _log_target[0] = None if path is None else Path(path)
     mujoco.set_mju_user_warning(_mujoco_warning)
 
@@ -308,8 +426,13 @@ def _mujoco_warning(message: str) -> None:
     if target is None:
         print(f"MuJoCo warning: {text}", file=sys.stderr)
         return
-    with contextlib.suppress(OSError), open(target, "a", encoding="utf-8") as handle:
-        handle.write(text + "\n")
+    try:
+        with open(target, "a", encoding="utf-8") as handle:
+            handle.write(text + "\n")
+    except OSError as err:  # the log went away or filled up: the warning still reaches the user
+        print(
+            f"MuJoCo warning: {text} (not written to --mujoco-log {target}: {err.strerror})", file=sys.stderr
+        )
 
 
 @contextlib.contextmanager

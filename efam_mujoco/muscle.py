@@ -159,6 +159,18 @@ class Muscle:
     rest_wall_thickness_m: float = field(init=False, repr=False)
 
     def __post_init__(self):
+        # types first: a string compares with nothing, and 'false' is a true string
+        for key in ("rest_length_m", "rest_diameter_m", "theta_rest_deg", "bladder_volume_m3", "deadband_Pa",
+                    "lock_stiffness_N_per_m"):  # fmt: skip
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise MuscleError(f"muscle constant '{key}' must be a number, got {value!r}")
+        if not isinstance(self.tension_only, (bool, np.bool_)):
+            raise MuscleError(f"muscle 'tension_only' must be True or False, got {self.tension_only!r}")
+        if not isinstance(self.stress, StressLaw):
+            raise MuscleError(f"muscle 'stress' must be a StressLaw, got {self.stress!r}")
+        if not isinstance(self.name, str):
+            raise MuscleError(f"muscle 'name' must be a string, got {self.name!r}")
         checks = {
             "rest_length_m": self.rest_length_m > 0,
             "rest_diameter_m": self.rest_diameter_m > 0,
@@ -169,7 +181,7 @@ class Muscle:
         }
         for key, ok in checks.items():
             value = getattr(self, key)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and ok):
+            if not (math.isfinite(value) and ok):
                 raise MuscleError(f"muscle constant '{key}' is invalid: {value!r}")
         theta = math.radians(self.theta_rest_deg)
         turns = self.rest_length_m / (math.pi * self.rest_diameter_m * math.tan(theta))  # Eq. 4

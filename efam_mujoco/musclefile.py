@@ -20,14 +20,17 @@ derives, which is how a calibration that re-estimated the braid angle from block
 
 from __future__ import annotations
 
+import copy
 import json
+import math
 import os
+import unicodedata
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from .files import write_json_atomic
+from .files import strict_json, write_json_atomic
 from .muscle import DEFAULT_LOCK_STIFFNESS, Geometry, Muscle, MuscleError
 from .stress import LAW_NAMES, StressLaw, StressLawError
 from .units import REQUIRED, UnitError, read_quantity, split_unit
@@ -73,6 +76,17 @@ MIN_WALL_M = 1e-5
 MAX_COEFFICIENT = 1e12
 #: Pressures at which a muscle file's model must give a finite force at every admissible length.
 CHECK_PRESSURES_PA = (0.0, 50e3, 200e3, 500e3, 1e6)
+#: A dead band must lie below the largest pressure the package drives a muscle with: the rig's
+#: control range and the recordings' default rated pressure (``rig.RigOptions.max_pressure_Pa``,
+#: ``recordings.DEFAULT_RATED_PRESSURE_PA``, both 1000 kPa; the paper's dead bands are 34 kPa).
+#: At or above it the muscle is never inflated; not imported from those modules, which import this one.
+MAX_DEADBAND_PA = 1.0e6
+#: The resting length over the bladder's working length (its length less what the
+#: fittings take, Eq. 7) is at most this, and at least its inverse. The model takes the bladder
+#: as unstrained at the resting length (Eq. 12); fabrication and cycling lengthen it by
+#: +3.7 % and +5.39 % (paper Sec. 4.2), so a factor of 1.5 is ten times that creep, and a
+#: muscle much longer than its bladder is a unit slip or the wrong key, not a muscle.
+MAX_REST_OVER_BLADDER = 1.5
 
 
 def preset_names() -> tuple[str, ...]:
@@ -93,6 +107,40 @@ def _no_duplicates(pairs):
     return seen
 
 
+def _where_refused(text: str) -> tuple[int, int]:
+    """(line, column) of the first NaN/Infinity token or key repeated in its object in ``text``
+    (JSON the standard decoder accepts but the hooks refuse); (1, 1) when not found."""
+    objects: list[set | None] = []  # per open bracket: the keys of an object, None for an array
+    i, n = 0, len(text)
+    while i < n:
+        c = text[i]
+        if c == '"':
+            end = i + 1
+            while end < n and text[end] != '"':
+                end += 2 if text[end] == "\\" else 1
+            after = end + 1
+            while after < n and text[after] in " \t\r\n":
+                after += 1
+            if objects and objects[-1] is not None and after < n and text[after] == ":":
+                key = text[i + 1 : end]
+                if key in objects[-1]:
+                    break
+                objects[-1].add(key)
+            i = end + 1
+            continue
+        if c in "{[":
+            objects.append(set() if c == "{" else None)
+        elif c in "}]" and objects:
+            objects.pop()
+        elif text.startswith(("NaN", "Infinity", "-Infinity"), i):
+            break
+        i += 1
+    else:
+        return 1, 1
+    line = text.count("\n", 0, i) + 1
+    return line, i - (text.rfind("\n", 0, i) + 1) + 1
+
+
 def parse_json_text(data: bytes, label: str) -> object:
     """Strict JSON from bytes: UTF-8 (a BOM is allowed), no NaN/Infinity, no duplicate keys;
     errors name ``label``, the line and the column."""
@@ -111,8 +159,9 @@ def parse_json_text(data: bytes, label: str) -> object:
         raise MuscleFileError(
             f"{label}: line {err.lineno}, column {err.colno}: not valid JSON ({err.msg})"
         ) from None
-    except ValueError as err:
-        raise MuscleFileError(f"{label}: not valid JSON: {err}") from None
+    except ValueError as err:  # the hooks' refusals (NaN, a key twice) know no position: find it
+        line, column = _where_refused(text)
+        raise MuscleFileError(f"{label}: line {line}, column {column}: not valid JSON ({err})") from None
     except RecursionError:
         raise MuscleFileError(f"{label}: not valid JSON: nested too deeply") from None
 
@@ -240,7 +289,9 @@ def geometry_from_dict(g: dict, where: str) -> Geometry:
             f"{where}: key 'fittings' must be a whole number of end fittings (1 .. 16), got {_json_type(fittings)}"
         )
     values["fittings"] = fittings
-    return Geometry(**values)
+    geometry = Geometry(**values)
+    _check_parts(geometry, g, where)
+    return geometry
 
 
 def _validate_top_level(doc: dict, label: str) -> None:
@@ -255,6 +306,17 @@ def _validate_top_level(doc: dict, label: str) -> None:
     for key in ("name", "description"):
         if key in doc and not isinstance(doc[key], str):
             raise MuscleFileError(f"{label}: key '{key}' must be a string, got {_json_type(doc[key])}")
+        # a control character or half a surrogate pair (JSON's \u0000, \ud800) is not text: it
+        # breaks the XML models, reports and file names the name goes into
+        bad = next(
+            (ch for ch in doc.get(key, "") if unicodedata.category(ch) in ("Cc", "Cs") and ch not in "\t\n"),
+            None,
+        )
+        if bad is not None:
+            raise MuscleFileError(
+                f"{label}: key '{key}' holds the character U+{ord(bad):04X}, which is not text (a control "
+                "character or half a surrogate pair)"
+            )
     if "notes" in doc and not (
         isinstance(doc["notes"], list) and all(isinstance(n, str) for n in doc["notes"])
     ):
@@ -304,6 +366,15 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
         deadband = _quantity(doc, "deadband", "pressure", label)
         if deadband < 0:
             raise MuscleFileError(f"{label}: deadband must not be negative, got {deadband:g} Pa")
+        if deadband >= MAX_DEADBAND_PA:
+            key = next((k for k in doc if split_unit(k)[0] == "deadband"), "deadband_kPa")
+            smaller = {"kPa": "Pa", "MPa": "kPa"}.get(split_unit(key)[1] or "", "")
+            hint = f"; was it in {smaller} (write 'deadband_{smaller}')?" if smaller else ""
+            raise MuscleFileError(
+                f"{label}: key '{key}' = {doc.get(key)!r} is a dead band of {deadband / 1e3:g} kPa, not below "
+                f"the {MAX_DEADBAND_PA / 1e3:g} kPa the package drives a muscle with at most (the rig's "
+                f"control range and the rated pressure): the muscle would never inflate{hint}"
+            )
         stress = stress_from_document(doc, label, law)
         lock = doc.get("lock_stiffness_N_per_m", DEFAULT_LOCK_STIFFNESS)
         if isinstance(lock, bool) or not isinstance(lock, (int, float)) or not 0 <= lock <= 1e9:
@@ -319,6 +390,10 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             name=str(doc.get("name", label)),
         )
         check_finite_forces(muscle, f"{label}: stress law '{stress.name}'")
+        for name, coefficients in doc["stress"]["laws"].items():  # every law, not only the one used
+            if name != stress.name:
+                other = StressLaw.from_dict(name, coefficients, where=f"{label}: stress law '{name}'")
+                check_finite_forces(_with_law(muscle, other), f"{label}: stress law '{name}'")
         _check_build(muscle, given, label)
         return muscle
     except (MuscleError, StressLawError, UnitError, OverflowError, ZeroDivisionError) as err:
@@ -330,6 +405,64 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
         if isinstance(err, MuscleFileError):
             raise
         raise MuscleFileError(f"{label}: the constants give no valid muscle ({err})") from None
+
+
+def _with_law(muscle: Muscle, law: StressLaw) -> Muscle:
+    """``muscle`` with ``law``, for evaluating forces only. Not :meth:`Muscle.with_stress`: that
+    re-runs the Drucker check, which a law meets or fails when it is the one chosen; a law the
+    file holds but the user did not choose must still give finite forces."""
+    probe = copy.copy(muscle)
+    object.__setattr__(probe, "stress", law)  # a frozen dataclass; the copy is private to the check
+    return probe
+
+
+def _check_parts(g: Geometry, block: dict, where: str) -> None:
+    """Parts that can be assembled into the muscle the geometry block describes (paper Secs.
+    2, 4.1, 4.2), each refusal naming the keys:
+
+    * the resting length below the braid thread length B = L_ref / sin(theta_ref) (Eq. 3 at the
+      sleeve's reference angle; this model measures the braid angle from the circumference):
+      a muscle longer than its sleeve's threads cannot be sheathed by them (Eq. 10 has no radius);
+    * the bladder longer than its clamping channels together: it is pushed through the whole
+      length of each channel before swaging (Sec. 4.2: the excess is then pushed out);
+    * the resting length within a factor MAX_REST_OVER_BLADDER of the working bladder length."""
+
+    def key(base):
+        return next((k for k in block if split_unit(k)[0] == base), f"{base}_m")
+
+    ref = math.radians(g.sleeve_angle_ref_deg)
+    thread = g.sleeve_length_ref_m / math.sin(ref)
+    if not g.rest_length_m < thread:
+        raise MuscleFileError(
+            f"{where}: key '{key('rest_length')}' = {block.get(key('rest_length'))!r} gives a resting length of "
+            f"{g.rest_length_m * 100:.4g} cm, not shorter than the sleeve's braid threads "
+            f"({thread * 100:.4g} cm = '{key('sleeve_length_ref')}' / sin({g.sleeve_angle_ref_deg:g} deg), Eq. 3): "
+            "no muscle that long can be built from this sleeve"
+        )
+    clamped = g.fittings * g.clamp_length_m
+    if not clamped < g.bladder_length_m:
+        raise MuscleFileError(
+            f"{where}: key '{key('clamp_length')}' = {block.get(key('clamp_length'))!r}: {g.fittings} clamping "
+            f"channels of {g.clamp_length_m * 100:.4g} cm take {clamped * 100:.4g} cm, not shorter than the "
+            f"bladder ('{key('bladder_length')}', {g.bladder_length_m * 100:.4g} cm), which runs through each "
+            "channel before swaging (Sec. 4.2)"
+        )
+    working = g.bladder_length_m - g.bladder_length_lost_m
+    if not working > 0:
+        raise MuscleFileError(
+            f"{where}: keys '{key('clamp_length')}', '{key('clamp_inner_diameter')}', "
+            f"'{key('clamp_outer_diameter')}': the clamping channels take {g.bladder_length_lost_m * 100:.4g} cm "
+            f"of bladder (Eq. 7), the whole '{key('bladder_length')}' ({g.bladder_length_m * 100:.4g} cm)"
+        )
+    ratio = g.rest_length_m / working
+    if not 1 / MAX_REST_OVER_BLADDER <= ratio <= MAX_REST_OVER_BLADDER:
+        raise MuscleFileError(
+            f"{where}: key '{key('rest_length')}' = {block.get(key('rest_length'))!r} gives a resting length of "
+            f"{g.rest_length_m * 100:.4g} cm, {ratio:.3g} x the working bladder length {working * 100:.4g} cm "
+            f"('{key('bladder_length')}' less what the fittings take, Eq. 7); the model takes the bladder as "
+            f"unstretched at rest, and cycling lengthens it by a few % (Sec. 4.2), so the two must agree "
+            f"within a factor {MAX_REST_OVER_BLADDER:g}"
+        )
 
 
 def _check_build(muscle: Muscle, given: dict, label: str) -> None:
@@ -446,5 +579,14 @@ def muscle_document(muscle: Muscle, laws: dict[str, StressLaw] | None = None, **
 
 
 def save_muscle(path: str | Path, muscle: Muscle, laws: dict[str, StressLaw] | None = None, **extra) -> Path:
-    """Write a muscle file atomically (a failed write never leaves a half file)."""
-    return write_json_atomic(path, muscle_document(muscle, laws, **extra))
+    """Write a muscle file atomically (a failed write never leaves a half file). The document
+    is read back through the file reader's checks first: a muscle the reader would refuse (a
+    1 deg braid, a dead band above the rated pressure) is an error here, not a file that every
+    later command refuses."""
+    if not isinstance(muscle, Muscle):
+        raise TypeError(
+            f"save_muscle(path, muscle, ...): muscle must be a Muscle, got {type(muscle).__name__}"
+        )
+    doc = muscle_document(muscle, laws, **extra)
+    muscle_from_document(json.loads(strict_json(doc)), f"save_muscle({str(path)!r})")
+    return write_json_atomic(path, doc)

@@ -426,6 +426,14 @@ REST_LENGTH_REACH = 0.5
 #: Median sample intervals a bench recorder makes (1 MHz .. one sample a minute).
 MIN_INTERVAL_S, MAX_INTERVAL_S = 1e-6, 60.0
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
+#: A recording whose length sweeps at least this share of the resting length (it was stroked)
+#: must somewhere move faster than MIN_STROKE_SPEED_M_PER_S between two samples. Bench strokes
+#: run at mm/s (the paper 5.1 mm/s, Sec. 3; standard rubber tests 500 mm/min); 10 um/s is a
+#: 100 mm stroke taking almost three hours. A time column in ms headed ``time_s`` makes every
+#: speed 1000 times slower (5.1 mm/s reads as 5.1 um/s) while its sample intervals (10 ms read
+#: as 10 s) still look like a slow recorder's; held-length (isometric) recordings are not judged.
+STROKE_SWEEP = 0.05
+MIN_STROKE_SPEED_M_PER_S = 10e-6
 #: A recorded force whose correlation with the model's (same lengths and pressures) is below
 #: minus this has its sign the other way round (effects and zeros keep it well above zero).
 SIGN_CORRELATION = 0.5
@@ -478,6 +486,33 @@ def _unit_that_fits(value_si: float, target_si: float, column: str, table: dict)
     return f"{base}_{best}" if best != unit else ""
 
 
+def _slow_strokes(rec: Recording, rest: float, tcol: str) -> str:
+    """A message when the recording was stroked (its length sweeps ``STROKE_SWEEP`` of the
+    resting length) but never faster than ``MIN_STROKE_SPEED_M_PER_S``, the fastest
+    sample-to-sample speed: a time column in a smaller unit than its header says; else ''."""
+    L, t = rec.length_m, rec.time_s
+    if len(rec) < 2 or not float(np.ptp(L)) >= STROKE_SWEEP * rest:
+        return ""
+    fastest = float(np.max(np.abs(np.diff(L)) / np.diff(t)))
+    if fastest >= MIN_STROKE_SPEED_M_PER_S:
+        return ""
+    base, unit = split_unit(tcol)
+    hint = ""
+    if unit in TIME_UNITS:  # the largest unit below the header's under which it would move at bench speed
+        for smaller in sorted(TIME_UNITS, key=TIME_UNITS.get, reverse=True):
+            if TIME_UNITS[smaller] < TIME_UNITS[unit]:
+                if fastest * TIME_UNITS[unit] / TIME_UNITS[smaller] >= MIN_STROKE_SPEED_M_PER_S:
+                    hint = f"; the numbers fit '{base}_{smaller}'"
+                    break
+    duration = float(t[-1] - t[0])
+    return (
+        f"column '{tcol}': the muscle is stroked over {np.ptp(L) * 1e3:.4g} mm but never faster than "
+        f"{fastest * 1e6:.3g} um/s (over {duration / 3600:.3g} h); bench strokes run at mm/s, and "
+        f"{MIN_STROKE_SPEED_M_PER_S * 1e6:g} um/s is a 100 mm stroke taking "
+        f"{0.1 / MIN_STROKE_SPEED_M_PER_S / 3600:.3g} h{hint}"
+    )
+
+
 def check_plausibility(
     recordings,
     muscle,
@@ -513,6 +548,10 @@ def check_plausibility(
                 f"{src}: column '{tcol}': the median sample interval is {interval:.4g} s; a bench recorder "
                 f"samples every {MIN_INTERVAL_S:g} .. {MAX_INTERVAL_S:g} s{hint}"
             )))  # fmt: skip
+        else:
+            slow = _slow_strokes(rec, rest, tcol)
+            if slow:
+                findings.append(Finding("time-unit", f"{src}: {slow}"))
         # lengths: a unit mix-up first (then the other length checks would only repeat it)
         if not 0.1 < median_L / rest < 10:
             if split_unit(lcol)[0] == "displacement":

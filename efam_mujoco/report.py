@@ -9,7 +9,14 @@ from pathlib import Path
 import numpy as np
 
 from . import rig
-from .files import replace_folder, safe_name, save_figure, strict_json, write_text_atomic
+from .files import (
+    check_replaceable_folder,
+    replace_folder,
+    safe_name,
+    save_figure,
+    strict_json,
+    write_text_atomic,
+)
 from .muscle import Muscle
 from .musclefile import load_muscle
 from .stress import LAW_NAMES
@@ -184,6 +191,7 @@ def run_muscle(args) -> int:
 def run_demo(args) -> int:
     """``efam demo``: the table and a force-stroke figure in the ``--out`` folder (replaced as a
     whole: it holds only what the demo writes)."""
+    check_replaceable_folder(args.out, "--out")  # before the work, not after it
     muscle = load_muscle(args.muscle, args.stress)
     rows = compare(muscle)
     doc = report_dict(muscle, rows)

@@ -24,6 +24,8 @@ Effects identified by ``efam diagnose`` switch on with ``RigOptions(effects=[(na
 
 from __future__ import annotations
 
+import math
+import unicodedata
 from dataclasses import dataclass
 
 import mujoco
@@ -42,6 +44,18 @@ P_ATM = 101325.0  # a gauge pressure is never below -1 atm
 LOAD_CELL_OFFSET = "load_cell_offset_N"  # <numeric> holding the force_offset effect
 
 
+def _finite(value, what: str, *, low: float = -math.inf, unit: str = "") -> float:
+    """``value`` as a float when it is a finite number not below ``low``; else an error naming it."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a number, got {value!r}") from None
+    if not (math.isfinite(number) and number >= low):
+        bound = f" at least {low:g}{unit}" if low > -math.inf else ""
+        raise ValueError(f"{what} must be a finite number{bound}, got {value!r}")
+    return number
+
+
 @dataclass(frozen=True)
 class RigOptions:
     mode: str = "free"
@@ -55,12 +69,28 @@ class RigOptions:
     min_pressure_Pa: float = 0.0  # the control's lower bound (a replay passes noise below 0 through)
 
     def __post_init__(self):
+        """Every option checked, each error naming it: MuJoCo would take a NaN mass as its
+        default, and a negative timestep or damping runs a model nobody asked for."""
         if self.mode not in MODES:
             raise ValueError(f"rig mode '{self.mode}' unknown (known: {', '.join(MODES)})")
-        if self.pressure_lag_s is not None and not self.pressure_lag_s > 0:
-            raise ValueError("pressure_lag_s must be positive (or None for no lag)")
-        if not -P_ATM <= self.min_pressure_Pa < self.max_pressure_Pa:
-            raise ValueError(f"min_pressure_Pa must be in [-{P_ATM:g}, max_pressure_Pa)")
+        if self.pressure_lag_s is not None:
+            _finite(
+                self.pressure_lag_s, "RigOptions.pressure_lag_s (or None for no lag)", low=1e-9, unit=" s"
+            )
+        _finite(self.max_pressure_Pa, "RigOptions.max_pressure_Pa", low=1.0, unit=" Pa")
+        _finite(self.min_pressure_Pa, "RigOptions.min_pressure_Pa", low=-P_ATM, unit=" Pa")
+        if not self.min_pressure_Pa < self.max_pressure_Pa:
+            raise ValueError(
+                f"RigOptions.min_pressure_Pa ({self.min_pressure_Pa:g}) must be below max_pressure_Pa "
+                f"({self.max_pressure_Pa:g})"
+            )
+        _finite(self.plate_mass_kg, "RigOptions.plate_mass_kg", low=1e-6, unit=" kg")
+        _finite(self.damping_Ns_per_m, "RigOptions.damping_Ns_per_m", low=0.0, unit=" N s/m")
+        _finite(self.timestep_s, "RigOptions.timestep_s", low=1e-7, unit=" s")
+        if self.timestep_s > 0.01:
+            raise ValueError(
+                f"RigOptions.timestep_s must be at most 0.01 s (a muscle rig), got {self.timestep_s!r}"
+            )
         object.__setattr__(self, "effects", tuple(self.effects))
         actuator_dynamics(self.effects, self.pressure_lag_s)  # one lag, or an error
         load_cell_offset(self.effects)  # validates every effect's parameters
@@ -162,8 +192,10 @@ def rig_xml(muscle: Muscle, options: RigOptions = RigOptions()) -> str:
 
 
 def _comment_text(text: str) -> str:
-    """``text`` safe inside an XML comment: one line, no ``--`` (a muscle's name is user input)."""
-    text = " ".join(str(text).split())
+    """``text`` safe inside an XML comment: one line, no ``--``, no character XML cannot hold
+    (controls, half surrogate pairs): a muscle's name is user input."""
+    text = "".join(ch for ch in str(text) if unicodedata.category(ch) not in ("Cc", "Cs") or ch in "\t\n")
+    text = " ".join(text.split())
     while "--" in text:
         text = text.replace("--", "- -")
     return text.rstrip("-")[:200]
@@ -190,13 +222,36 @@ def _zero_error(model: mujoco.MjModel) -> float:
         return 0.0
 
 
+#: How far (a share of the resting length) a length may lie beyond the muscle's admissible
+#: lengths and still be asked about: the lock spring (20 kN/m) holds a muscle a few mm past its
+#: braid's lock-out under tens of newtons, never a tenth of its length (``efam view --check``
+#: calls a model whose muscle goes further one whose geometry does not fit the muscle)
+ADMISSIBLE_SLACK = 0.1
+
+
+def check_lengths(muscle: Muscle, lengths_m, what: str) -> np.ndarray:
+    """``lengths_m`` as an array, refused (naming ``what``) when a length is not finite or lies
+    beyond the muscle's admissible lengths by more than ``ADMISSIBLE_SLACK`` of its rest length."""
+    lengths = np.atleast_1d(np.asarray(lengths_m, dtype=float))
+    if lengths.ndim != 1:
+        raise ValueError(
+            f"{what} must be a number or a 1-D sequence of lengths in m, got shape {lengths.shape}"
+        )
+    slack = ADMISSIBLE_SLACK * muscle.rest_length_m
+    check_within(lengths, muscle.min_length_m - slack, muscle.max_length_m + slack, what=what, unit="m")
+    return lengths
+
+
 def stroke_forces(
     muscle: Muscle, pressure_Pa: float, lengths_m, settle_s: float = 0.0, effects=()
 ) -> np.ndarray:
     """Displacement-controlled test: the load cell (push positive) at each prescribed length.
-    ``pressure_Pa`` in Pa, inside the rig's control range (else an error, never a clamp)."""
+    ``pressure_Pa`` in Pa, inside the rig's control range (else an error, never a clamp);
+    ``lengths_m`` inside the muscle's admissible lengths (give or take ``ADMISSIBLE_SLACK``)."""
     options = RigOptions(mode="stroke", effects=effects)
     check_control_range(pressure_Pa, options, "stroke_forces: pressure_Pa")
+    lengths_m = check_lengths(muscle, lengths_m, "stroke_forces: lengths_m")
+    settle_s = _finite(settle_s, "stroke_forces: settle_s", low=0.0, unit=" s")
     model, data = build_rig(muscle, options)
     forces = []
     for length in np.atleast_1d(lengths_m):
@@ -303,7 +358,14 @@ def equilibrium_length(
     tol_m_per_s: float = 1e-7,
 ) -> float:
     """Let the plate settle under pressure (and a compressive load); return the muscle length.
-    ``pressure_Pa`` in Pa, inside the rig's control range (else an error, never a clamp)."""
+    ``pressure_Pa`` in Pa, inside the rig's control range (else an error, never a clamp). A load
+    the muscle cannot hold (MuJoCo's simulation blows up and resets) is an error, not the
+    reset's resting length."""
+    from .files import mujoco_warnings
+
+    load_N = _finite(load_N, "equilibrium_length: load_N")
+    max_time_s = _finite(max_time_s, "equilibrium_length: max_time_s", low=1e-3, unit=" s")
+    tol_m_per_s = _finite(tol_m_per_s, "equilibrium_length: tol_m_per_s", low=1e-15, unit=" m/s")
     options = RigOptions(mode="loaded" if load_N else "free")
     check_control_range(pressure_Pa, options, "equilibrium_length: pressure_Pa")
     model, data = build_rig(muscle, options)
@@ -312,13 +374,29 @@ def equilibrium_length(
         data.ctrl[1] = load_N
     length = model.sensor("muscle_length").adr[0]
     steps_per_check = max(1, int(0.05 / model.opt.timestep))
-    for _ in range(int(max_time_s / 0.05)):
-        for _ in range(steps_per_check):
-            mujoco.mj_step(model, data)
-        if abs(data.qvel[0]) < tol_m_per_s and abs(data.qacc[0]) * 0.05 < tol_m_per_s:
-            break
-    else:
-        raise RuntimeError(f"rig did not settle within {max_time_s} s at {pressure_Pa:g} Pa")
+    # a law infinitely stiff at zero strain (exponent, E3 < 1) keeps the plate in a limit cycle of
+    # tens of nm about its rest: it never stops, but it has settled when, at the end, a window's
+    # whole swing (and its drift from the window before) is under a millionth of the resting
+    # length; only then, so that every other muscle still settles to the velocity tolerance
+    still_m = 1e-6 * muscle.rest_length_m
+    mid, previous_mid, swing = math.inf, math.inf, math.inf
+    with mujoco_warnings() as warned:
+        for _ in range(max(1, int(max_time_s / 0.05))):
+            low, high = math.inf, -math.inf
+            for _ in range(steps_per_check):
+                mujoco.mj_step(model, data)
+                low, high = min(low, data.qpos[0]), max(high, data.qpos[0])
+            if warned:
+                raise RuntimeError(
+                    f"the rig went unstable at {pressure_Pa:g} Pa under a load of {load_N:g} N (MuJoCo: "
+                    f"{warned[0]}): more than the muscle can hold, or a load in the wrong unit"
+                )
+            if abs(data.qvel[0]) < tol_m_per_s and abs(data.qacc[0]) * 0.05 < tol_m_per_s:
+                break
+            previous_mid, mid, swing = mid, 0.5 * (low + high), high - low
+        else:
+            if not (swing < still_m and abs(mid - previous_mid) < still_m):
+                raise RuntimeError(f"rig did not settle within {max_time_s} s at {pressure_Pa:g} Pa")
     mujoco.mj_forward(model, data)
     return float(data.sensordata[length])
 

@@ -16,12 +16,17 @@ import mujoco
 
 from .muscle import Muscle
 from .plugin import PLUGIN_NAME, load, plugin_slot
+from .rig import ADMISSIBLE_SLACK
 
 
 def compile_model(path: str | Path) -> mujoco.MjModel:
     """Compile an MJCF file with the plugin loaded; errors name the file."""
     load()
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: is a folder, not a model file")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{path}: is not a regular file (a pipe or a device?), not a model file")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file")
     try:
@@ -59,9 +64,14 @@ def check(path: str | Path) -> str:
 
     model = compile_model(path)
     check_muscle_laws(path)
+    muscles = actuator_muscles(model, muscles_in_file(path))
+    if problems := control_range_problems(model, muscles):
+        raise ValueError(f"{path}: {problems[0]}")
     data = mujoco.MjData(model)
     with mujoco_warnings() as warned:
         mujoco.mj_forward(model, data)
+        if at_rest := _outside_lengths(model, data, muscles):
+            raise ValueError(f"{path}: at the initial state, {at_rest}")
         bad = [
             name for name in ("qacc", "actuator_force") if not all(map(math.isfinite, getattr(data, name)))
         ]
@@ -74,6 +84,8 @@ def check(path: str | Path) -> str:
             mujoco.mj_step(model, data)
             if warned:
                 break
+            if step_index := _outside_lengths(model, data, muscles):
+                raise ValueError(f"{path}: with every actuator at its largest control, {step_index}")
         bad = [n for n in ("qpos", "qvel", "actuator_force") if not all(map(math.isfinite, getattr(data, n)))]
     if warned or bad:
         what = "; ".join(warned[:2]) or f"non-finite {', '.join(bad)}"
@@ -84,10 +96,64 @@ def check(path: str | Path) -> str:
     return summary(path, model, data)
 
 
+def actuator_muscles(model: mujoco.MjModel, muscles: dict[str, Muscle]) -> dict[int, Muscle]:
+    """Actuator index -> the muscle its efam.muscle instance declares (by the instance's name,
+    or the actuator's own name for a plugin written inside the actuator)."""
+    slot = plugin_slot()
+    out = {}
+    for i, instance in enumerate(model.actuator_plugin):
+        if instance < 0 or model.plugin[instance] != slot:
+            continue
+        names = (
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_PLUGIN, int(instance)),
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i),
+        )
+        muscle = next((muscles[n] for n in names if n and n in muscles), None)
+        if muscle is not None:
+            out[i] = muscle
+    return out
+
+
+def _actuator_label(model: mujoco.MjModel, i: int) -> str:
+    return f"actuator '{mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or i}'"
+
+
+def control_range_problems(model: mujoco.MjModel, muscles: dict[int, Muscle]) -> list[str]:
+    """Muscle actuators whose control range tops out below the muscle's dead band: the controls
+    are pressures in Pa, and a range written in kPa (``ctrlrange="0 500"``) never inflates it."""
+    out = []
+    for i, muscle in muscles.items():
+        high = float(model.actuator_ctrlrange[i][1])
+        if model.actuator_ctrllimited[i] and high <= muscle.deadband_Pa:
+            out.append(
+                f"{_actuator_label(model, i)}: its control range tops out at {high:g} Pa, not above the "
+                f"muscle's dead band ({muscle.deadband_Pa:g} Pa), so it never inflates; controls are "
+                f"pressures in Pa (was ctrlrange written in kPa?)"
+            )
+    return out
+
+
+def _outside_lengths(model: mujoco.MjModel, data: mujoco.MjData, muscles: dict[int, Muscle]) -> str:
+    """A description of the first muscle actuator whose length lies beyond its muscle's
+    admissible lengths by more than ``ADMISSIBLE_SLACK`` of its resting length ('' when none)."""
+    for i, muscle in muscles.items():
+        length = float(data.actuator_length[i])
+        slack = ADMISSIBLE_SLACK * muscle.rest_length_m
+        if not muscle.min_length_m - slack <= length <= muscle.max_length_m + slack:
+            return (
+                f"{_actuator_label(model, i)} has length {length:.4g} m at t = {data.time:.3g} s, outside "
+                f"its muscle's admissible {muscle.min_length_m:.4g} .. {muscle.max_length_m:.4g} m (resting "
+                f"{muscle.rest_length_m:.4g} m): the model's geometry does not fit the muscle (its tendon, "
+                f"gear or transmission, or the muscle's rest_length_m)"
+            )
+    return ""
+
+
 def muscles_in_file(path: str | Path) -> dict[str, Muscle]:
     """The efam.muscle instances an MJCF file declares (``<extension><plugin plugin="efam.muscle">
-    <instance name=...><config key= value=/>``), as Python muscles (instances whose config does
-    not read as numbers are left to the compiler's message)."""
+    <instance name=...><config key= value=/>``, keyed by the instance's name, and ``<actuator>
+    <plugin plugin="efam.muscle" name=...><config .../>``, keyed by the actuator's), as Python
+    muscles (instances whose config does not read as numbers are left to the compiler's message)."""
     import xml.etree.ElementTree as ET
 
     from .stress import LAWS, StressLaw
@@ -97,26 +163,31 @@ def muscles_in_file(path: str | Path) -> dict[str, Muscle]:
         root = ET.parse(str(path)).getroot()
     except (ET.ParseError, OSError):
         return out
+    declared = []  # (name, config): <extension> instances, and plugins written inside an actuator
     for plugin in root.iter("plugin"):
         if plugin.get("plugin") != PLUGIN_NAME:
             continue
         for k, instance in enumerate(plugin.iter("instance")):
-            config = {c.get("key"): c.get("value") for c in instance.iter("config")}
-            try:
-                law = config.get("law", "linear")
-                coefficients = tuple(float(config[key]) for key in LAWS[law].params)
-                out[instance.get("name") or f"instance {k}"] = Muscle(
-                    rest_length_m=float(config["rest_length_m"]),
-                    rest_diameter_m=float(config["rest_diameter_m"]),
-                    theta_rest_deg=float(config["theta_rest_deg"]),
-                    bladder_volume_m3=float(config["bladder_volume_m3"]),
-                    deadband_Pa=float(config["deadband_Pa"]),
-                    stress=StressLaw(law, coefficients),
-                    tension_only=config.get("tension_only", "0").strip() in ("1", "true"),
-                    name=instance.get("name") or "",
-                )
-            except (KeyError, TypeError, ValueError, ArithmeticError):
-                continue
+            declared.append((instance.get("name") or f"instance {k}", instance))
+        if plugin.find("instance") is None and plugin.find("config") is not None:
+            declared.append((plugin.get("name") or "", plugin))
+    for name, holder in declared:
+        config = {c.get("key"): c.get("value") for c in holder.iter("config")}
+        try:
+            law = config.get("law", "linear")
+            coefficients = tuple(float(config[key]) for key in LAWS[law].params)
+            out[name] = Muscle(
+                rest_length_m=float(config["rest_length_m"]),
+                rest_diameter_m=float(config["rest_diameter_m"]),
+                theta_rest_deg=float(config["theta_rest_deg"]),
+                bladder_volume_m3=float(config["bladder_volume_m3"]),
+                deadband_Pa=float(config["deadband_Pa"]),
+                stress=StressLaw(law, coefficients),
+                tension_only=config.get("tension_only", "0").strip() in ("1", "true"),
+                name=name,
+            )
+        except (KeyError, TypeError, ValueError, ArithmeticError):
+            continue
     return out
 
 
@@ -142,11 +213,36 @@ def run_view(args) -> int:
             f"{args.file}: no display to open a window on (DISPLAY is not set); "
             "'efam view --check FILE' checks a model without one"
         )
+    if problem := _display_problem():
+        raise RuntimeError(
+            f"{args.file}: cannot open a window: {problem} (a stale DISPLAY, e.g. over ssh?); "
+            "'efam view --check FILE' checks a model without one"
+        )
     data = mujoco.MjData(model)
     from mujoco import viewer as mujoco_viewer  # needs a display; imported only to open a window
 
     mujoco_viewer.launch(model, data)
     return 0
+
+
+def _display_problem() -> str:
+    """Why no window can be opened here ('' when one can, or when GLFW is not there to ask):
+    MuJoCo's viewer only finds out in its own thread, where it prints GLFW's error, writes
+    MUJOCO_LOG.TXT into the working folder and exits 1."""
+    import warnings
+
+    try:
+        import glfw
+    except Exception:  # noqa: BLE001 - no GLFW binding (or no libglfw): let the viewer say
+        return ""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        opened = glfw.init()
+    if opened:
+        glfw.terminate()
+        return ""
+    said = "; ".join(str(w.message) for w in caught)
+    return f"GLFW could not initialise ({said})" if said else "GLFW could not initialise"
 
 
 def register_cli(sub) -> None:

@@ -235,3 +235,22 @@ def _constants(muscle):
         bladder_volume_m3=muscle.bladder_volume_m3,
         deadband_Pa=muscle.deadband_Pa,
     )
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"tension_only": "false"}, "'tension_only' must be True or False"),  # a true string: pushed 0 N
+        ({"rest_length_m": "0.17"}, "'rest_length_m' must be a number"),  # was a '>' TypeError
+        ({"rest_length_m": True}, "'rest_length_m' must be a number"),  # was a 1 m muscle
+        ({"stress": "exponential_decay"}, "'stress' must be a StressLaw"),  # was an AttributeError
+        ({"name": 3}, "'name' must be a string"),
+    ],
+)
+def test_muscle_constructor_refuses_wrong_types_naming_the_field(change, words):
+    from dataclasses import replace
+
+    from efam_mujoco.muscle import MuscleError
+
+    with pytest.raises(MuscleError, match=words):
+        replace(load_muscle("FAM1"), **change)

@@ -284,6 +284,15 @@ BAD_CONFIGS = {
     "coefficient of another law": (_set(POLY, E4="2.0"), "'E4' is not a coefficient"),
     "Drucker-unstable polynomial": (_set(POLY, E3_Pa="-2e7", E4_Pa="0"), "Drucker.*E3_Pa"),
     "bladder too big for the sleeve": (_set(GOOD, bladder_volume_m3="1e-3"), "bladder_volume_m3"),
+    # values each finite and signed right, that no muscle could have (the muscle-file reader refuses
+    # them too): 170 m (mm written as m), a braid angle of 1 deg, a dead band of 1e30 Pa, E1 1e300
+    "rest length in mm": (_set(GOOD, rest_length_m="170.18"), r"rest_length_m.*was it in mm"),
+    "braid angle 1 deg": (_set(GOOD, theta_rest_deg="1"), r"theta_rest_deg.*2 \.\. 88 deg"),
+    "braid angle 89 deg": (_set(GOOD, theta_rest_deg="89"), r"theta_rest_deg.*2 \.\. 88 deg"),
+    "dead band 1e30 Pa": (_set(GOOD, deadband_Pa="1e30"), r"deadband_Pa.*never inflates"),
+    "E1 1e300": (_set(GOOD, E1_Pa="1e300"), r"E1_Pa.*beyond 1e12"),
+    "hexadecimal length": (_set(GOOD, rest_length_m="0x1p-3"), r"rest_length_m.*decimal number"),
+    "bladder wall thinner than any": (_set(GOOD, bladder_volume_m3="1e-11"), r"bladder_volume_m3.*wall"),
     "bladder misfit at rest": (
         _set(GOOD, bladder_volume_m3=repr(1.05 * _volume_filling_sleeve_at_rest(FAM1))),
         "bladder_volume_m3.*resting length",
@@ -296,6 +305,27 @@ def test_bad_config_fails_compilation_naming_the_key(case):
     config, key_pattern = BAD_CONFIGS[case]
     with pytest.raises(ValueError, match=key_pattern):
         mujoco.MjModel.from_xml_string(model_xml(FAM1, config=config))
+
+
+def test_plugin_bounds_are_the_muscle_files():
+    """The plugin refuses what a muscle file refuses, at the same thresholds: just inside compiles,
+    just outside does not (rest length, braid angle, dead band, stress coefficient)."""
+    from efam_mujoco import musclefile
+
+    lo, hi = musclefile.BRAID_ANGLE_DEG
+    inside = {"theta_rest_deg": (lo, hi), "deadband_Pa": (0.0, 0.999 * musclefile.MAX_DEADBAND_PA)}
+    outside = {"theta_rest_deg": (0.99 * lo, 1.001 * hi), "deadband_Pa": (musclefile.MAX_DEADBAND_PA,)}
+    for key, values in inside.items():
+        for value in values:
+            config = _set(GOOD, **{key: repr(value)})
+            if key == "theta_rest_deg":  # a braid angle moves the sleeve: keep the bladder inside it
+                config = _set(config, bladder_volume_m3=repr(1e-6))
+            mujoco.MjModel.from_xml_string(model_xml(FAM1, config=config))  # compiles
+    for key, values in outside.items():
+        for value in values:
+            with pytest.raises(ValueError, match=key):
+                mujoco.MjModel.from_xml_string(model_xml(FAM1, config=_set(GOOD, **{key: repr(value)})))
+    assert musclefile.MAX_COEFFICIENT == 1e12 and musclefile.MIN_WALL_M == 1e-5  # the C constants' values
 
 
 def test_python_model_rejects_the_same_unstable_polynomial():

@@ -164,3 +164,54 @@ def test_install_plugin_command_copies_prints_and_removes(tmp_path, capsys):
     assert not installed.exists() and "removed" in capsys.readouterr().out
     assert main(["install-plugin", "--remove", "--dir", str(target)]) == 0
     assert "nothing removed" in capsys.readouterr().out
+
+
+def test_install_plugin_replaces_and_removes_only_its_own_builds(tmp_path, capsys):
+    """A file that only has the library's name is the user's: never overwritten, never removed;
+    an earlier build (another build's bytes, same entry point) is replaced."""
+    mine = tmp_path / "user"
+    mine.mkdir()
+    theirs = mine / efam_plugin.LIBRARY_FILE
+    theirs.write_text("MY DATA")
+    assert main(["install-plugin", "--dir", str(mine)]) == 2
+    assert "is not an efam.muscle plugin library: not replaced" in capsys.readouterr().err
+    assert main(["install-plugin", "--remove", "--dir", str(mine)]) == 0
+    assert "not an efam.muscle build" in capsys.readouterr().out
+    assert theirs.read_text() == "MY DATA"
+    older = tmp_path / "older"
+    older.mkdir()
+    build = Path(efam_plugin.library_path()).read_bytes()
+    (older / efam_plugin.LIBRARY_FILE).write_bytes(build + b"another build")
+    assert main(["install-plugin", "--dir", str(older)]) == 0
+    assert (older / efam_plugin.LIBRARY_FILE).read_bytes() == build
+    assert "mj_loadPluginLibrary" in capsys.readouterr().out  # not "plain import mujoco now loads it"
+
+
+def test_install_plugin_never_removes_the_packages_own_library(tmp_path, monkeypatch, capsys):
+    from efam_mujoco.plugin import install as installer
+
+    package = tmp_path / "package"  # a stand-in for the package's plugin folder
+    package.mkdir()
+    own = package / efam_plugin.LIBRARY_FILE
+    own.write_bytes(Path(efam_plugin.library_path()).read_bytes())
+    monkeypatch.setattr(installer, "library_path", lambda: str(own))
+    assert main(["install-plugin", "--remove", "--dir", str(package)]) == 0
+    assert own.exists() and "the package's own library" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["--dir", ""], "--dir is empty"),
+        (["--dir", "{file}"], "exists and is not a folder"),
+        (["--dir", "{tmp}/new/" + efam_plugin.LIBRARY_FILE], "give the folder, not the library's own path"),
+        (["--print-path", "--remove"], "takes no --remove or --dir"),
+    ],
+)
+def test_install_plugin_bad_arguments_are_named(tmp_path, capsys, argv, words):
+    (tmp_path / "a_file").write_text("x")
+    argv = [a.replace("{file}", str(tmp_path / "a_file")).replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(["install-plugin", *argv]) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
+    assert not (tmp_path / "new").exists()  # nothing created

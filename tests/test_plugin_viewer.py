@@ -73,7 +73,79 @@ def test_view_opens_the_viewer_with_the_compiled_model(tmp_path, monkeypatch):
     opened = {}
     monkeypatch.setattr(mujoco.viewer, "launch", lambda model, data: opened.update(model=model, data=data))
     monkeypatch.setenv("DISPLAY", ":0")  # efam view refuses to open a window without a display
+    monkeypatch.setattr("efam_mujoco.viewer._display_problem", lambda: "")  # ... or one GLFW cannot open
     path = write_model(tmp_path, config_xml(load_muscle("FAM2"), "      "))
     assert main(["view", path]) == 0
     assert isinstance(opened["model"], mujoco.MjModel) and opened["model"].nu == 3
     assert isinstance(opened["data"], mujoco.MjData)
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        # a 0.5 m muscle on a 0.17 m tendon: compiles, and swung hundreds of metres at 1e5 m/s
+        (
+            lambda xml: xml.replace('key="rest_length_m" value="0.17018"', 'key="rest_length_m" value="0.5"'),
+            r"largest control, actuator 'm1' has length [0-9.]+ m .* outside its muscle's admissible",
+        ),
+        # a zero gear makes the muscle's length 0 (a constant 5.7 MN from the lock spring)
+        (lambda xml: xml.replace('tendon="t2">', 'tendon="t2" gear="0">'), r"actuator 'm2' has length 0 m"),
+        # kPa typed into the control range of a Pa control: the muscle never leaves its dead band
+        (
+            lambda xml: xml.replace('tendon="t2">', 'tendon="t2" ctrlrange="0 500" ctrllimited="true">'),
+            r"actuator 'm2': its control range tops out at 500 Pa.*was ctrlrange written in kPa",
+        ),
+    ],
+)
+def test_view_check_refuses_a_model_whose_muscles_cannot_be_what_it_says(tmp_path, capsys, edit, words):
+    """The plugin compiles each of these and the simulation stays finite, so finiteness alone
+    reported them ok; the check compares every muscle actuator with its muscle."""
+    import re
+
+    path = write_model(tmp_path, config_xml(load_muscle("FAM1"), "      "))
+    text = edit(open(path).read())
+    assert text != open(path).read()
+    open(path, "w").write(text)
+    assert main(["view", "--check", path]) == 2
+    err = capsys.readouterr().err
+    assert re.search(words, err), err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_view_check_passes_the_shipped_arm_models(capsys):
+    from pathlib import Path
+
+    for model in ("arm_1x3.xml", "arm_3x3.xml", "rig_stroke_fam1.xml"):
+        path = Path(__file__).parent.parent / "models" / model
+        assert main(["view", "--check", str(path)]) == 0, capsys.readouterr().err
+
+
+def test_view_with_a_display_that_cannot_be_opened_says_so(tmp_path):
+    """A stale DISPLAY (ssh): one line naming the problem and exit 2, not GLFW's warnings, exit 1
+    and a MUJOCO_LOG.TXT in the working folder."""
+    import os
+    import subprocess
+    import sys
+
+    path = write_model(tmp_path, config_xml(load_muscle("FAM1"), "      "))
+    env = {**os.environ, "DISPLAY": ":987"}
+    env.pop("WAYLAND_DISPLAY", None)
+    run = subprocess.run([sys.executable, "-m", "efam_mujoco.cli", "view", path], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert run.returncode == 2, run.stderr
+    assert "cannot open a window" in run.stderr and "Failed to open display" in run.stderr
+    assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_view_names_a_folder_or_a_pipe_given_as_the_model(tmp_path, capsys):
+    import os
+
+    os.mkfifo(tmp_path / "pipe.xml")
+    (tmp_path / "folder.xml").mkdir()
+    for name, words in (
+        ("folder.xml", "is a folder, not a model file"),
+        ("pipe.xml", "is not a regular file"),
+    ):
+        assert main(["view", "--check", str(tmp_path / name)]) == 2
+        assert words in capsys.readouterr().err  # was "no such model file"

@@ -59,3 +59,44 @@ def test_bad_rig_options():
         rig.RigOptions(mode="bench")
     with pytest.raises(ValueError, match="pressure_lag_s"):
         rig.RigOptions(pressure_lag_s=-0.1)
+    # each was accepted: MuJoCo took a NaN mass as its default, ran a negative timestep or damping,
+    # and a NaN top pressure was blamed on min_pressure_Pa
+    for field, value in [("timestep_s", -1.0), ("timestep_s", 0.0), ("timestep_s", float("nan")),
+                         ("damping_Ns_per_m", -100.0), ("plate_mass_kg", float("nan")),
+                         ("max_pressure_Pa", float("nan"))]:  # fmt: skip
+        with pytest.raises(ValueError, match=f"RigOptions.{field}"):
+            rig.RigOptions(**{field: value})
+
+
+def test_a_law_infinitely_stiff_at_rest_settles_in_its_limit_cycle(capsys):
+    """The exponent law (E3 < 1) has an unbounded slope at zero strain: vented, the plate keeps a
+    limit cycle of tens of nm about the resting length instead of stopping. That is settled (the
+    muscle at rest, free extension 0), not 'rig did not settle'."""
+    from efam_mujoco.cli import main
+
+    muscle = load_muscle("FAM2", law="exponent")
+    assert rig.equilibrium_length(muscle, 0.0) == pytest.approx(muscle.rest_length_m, rel=1e-6)
+    assert main(["muscle", "FAM2", "--stress", "exponent", "--pressures-kPa", "0", "10"]) == 0
+    assert "did not settle" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "call, words",
+    [
+        # MuJoCo zeroes a NaN control: the answer was the no-load length
+        (lambda m: rig.equilibrium_length(m, 200e3, load_N=float("nan")), "load_N must be a finite number"),
+        # far beyond what the muscle holds: MuJoCo reset the run and the answer was the rest length
+        (
+            lambda m: rig.equilibrium_length(m, 200e3, load_N=1e9),
+            "went unstable .* under a load of 1e\\+09 N",
+        ),
+        (lambda m: rig.equilibrium_length(m, 200e3, max_time_s=float("nan")), "max_time_s"),
+        (lambda m: rig.stroke_forces(m, 200e3, [float("nan")]), "lengths_m"),  # was 0 N
+        (lambda m: rig.stroke_forces(m, 200e3, [-1.0]), "lengths_m"),  # was -2.2e7 N
+        (lambda m: rig.stroke_forces(m, 200e3, [[0.17, 0.18]]), "1-D"),
+        (lambda m: rig.stroke_forces(m, 200e3, [0.17], settle_s=-1), "settle_s"),
+    ],
+)
+def test_rig_refuses_inputs_that_gave_plausible_looking_wrong_answers(call, words):
+    with pytest.raises(ValueError if "unstable" not in words else RuntimeError, match=words):
+        call(load_muscle("FAM1"))

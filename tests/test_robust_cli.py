@@ -93,14 +93,14 @@ USAGE = [
     (["bogus"], r"invalid choice: 'bogus'"),
     (["muscle"], r"required: muscle"),
     (["muscle", "FAM1", "--pressures-kPa"], r"expected at least one argument"),
-    (["muscle", "FAM1", "--pressures-kPa", "abc"], r"invalid float value: 'abc'"),
+    (["muscle", "FAM1", "--pressures-kPa", "abc"], r"--pressures-kPa: takes a plain decimal number.*'abc'"),
     (
         ["muscle", "FAM1", "--pressures-kPa", "2000"],
         r"--pressures-kPa: 2000 kPa is outside the rig's control range",
     ),
     (["muscle", "FAM1", "--pressures-kPa", "-5"], r"--pressures-kPa: -5 kPa is outside"),
-    (["muscle", "FAM1", "--pressures-kPa", "nan"], r"--pressures-kPa: nan kPa"),
-    (["muscle", "FAM1", "--pressures-kPa", "inf"], r"--pressures-kPa: inf kPa"),
+    (["muscle", "FAM1", "--pressures-kPa", "nan"], r"--pressures-kPa: takes a plain decimal number.*'nan'"),
+    (["muscle", "FAM1", "--pressures-kPa", "inf"], r"--pressures-kPa: takes a plain decimal number.*'inf'"),
     (["muscle", "FAM1", "--pressures-kPa", "1e300"], r"--pressures-kPa: 1e\+300 kPa"),
     (["muscle", "FAM1", "--pressures-kPa", *["100"] * 60], r"at most 50 pressures"),
     (["muscle", "FAM1", "--stress", "ogden"], r"invalid choice: 'ogden'"),
@@ -127,16 +127,19 @@ USAGE = [
     (["arm", "--muscles-per-section", "2", "--xml", "x.xml"], r"--muscles-per-section"),
     (["arm", "--muscle", "FAM1", "FAM2", "--xml", "x.xml"], r"--muscle: give 1 muscle"),
     (["arm", "--orientation", "sideways"], r"invalid choice: 'sideways'"),
-    (["arm", "--disks", "many"], r"invalid int value"),
+    (["arm", "--disks", "many"], r"takes a whole number"),
     (["arm", "--pressures-kPa", "100", "100"], r"--pressures-kPa: need 3"),
     (["arm", "--pressures-kPa", "100", "100", "-1"], r"--pressures-kPa: -1 kPa is outside 0 \.\. 517"),
     (["arm", "--pressures-kPa", "2000", "100", "100"], r"--pressures-kPa: 2000 kPa is outside .*clamp"),
-    (["arm", "--pressures-kPa", "nan", "100", "100"], r"--pressures-kPa: nan kPa is outside"),
+    (
+        ["arm", "--pressures-kPa", "nan", "100", "100"],
+        r"--pressures-kPa: takes a plain decimal number.*'nan'",
+    ),
     (["arm", "--disks", "1000", "--xml", "x.xml"], r"--disks: 1000 is outside 1 \.\. 40"),
     (["arm", "--disks", "0", "--xml", "x.xml"], r"--disks: 0 is outside"),
     (["arm", "--payload-kg", "1e300", "--xml", "x.xml"], r"--payload-kg: 1e\+300 kg is outside"),
     (["arm", "--payload-kg", "-1", "--xml", "x.xml"], r"--payload-kg: -1 kg"),
-    (["arm", "--payload-kg", "inf", "--xml", "x.xml"], r"--payload-kg: inf kg"),
+    (["arm", "--payload-kg", "inf", "--xml", "x.xml"], r"--payload-kg: takes a plain decimal number.*'inf'"),
     (["arm", "--radius-mm", "0", "--xml", "x.xml"], r"--radius-mm: 0 mm is outside"),
     (["arm", "--radius-mm", "1e308", "--xml", "x.xml"], r"--radius-mm"),
     (["arm", "--sections", "100000", "--xml", "x.xml"], r"--sections: 100000 is outside"),
@@ -377,6 +380,70 @@ def test_report_folder_is_replaced_as_a_whole(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]  # no temporaries
 
 
+def test_a_report_folder_holding_anything_but_its_report_is_not_replaced(tmp_path):
+    """The marker lists the report's files with their sha256: a file the user added, a report
+    file the user edited, or a hand-made marker makes the folder the user's, never replaced."""
+    report = tmp_path / "report"
+    with replace_folder(report) as staging:
+        (staging / "a.txt").write_text("first run")
+        (staging / "figures").mkdir()
+        (staging / "figures" / "f.png").write_bytes(b"png")
+    with replace_folder(report) as staging:  # untouched: replaced
+        (staging / "a.txt").write_text("second run")
+    (report / "my_notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match=r"my_notes\.txt is not a file the report wrote"):
+        with replace_folder(report) as staging:
+            pass
+    (report / "my_notes.txt").unlink()
+    (report / "a.txt").write_text("second run, with my notes")
+    with pytest.raises(OutputError, match=r"a\.txt was changed after the report wrote it"):
+        with replace_folder(report):
+            pass
+    assert (report / "a.txt").read_text() == "second run, with my notes"
+    forged = tmp_path / "forged"
+    forged.mkdir()
+    (forged / REPORT_MARKER).write_text("")
+    (forged / "thesis.tex").write_text("years of work")
+    with pytest.raises(OutputError, match="lists no report files"):
+        with replace_folder(forged):
+            pass
+    assert (forged / "thesis.tex").read_text() == "years of work"
+
+
+def test_a_report_folder_given_through_a_link_is_written_where_it_points(tmp_path):
+    target = tmp_path / "target"
+    link = tmp_path / "link"
+    link.symlink_to(target, target_is_directory=True)
+    with pytest.raises(OutputError, match="does not exist"):  # a dangling link: not replaced by a folder
+        with replace_folder(link):
+            pass
+    target.mkdir()
+    with replace_folder(link) as staging:
+        (staging / "a.txt").write_text("through the link")
+    assert link.is_symlink() and (target / "a.txt").read_text() == "through the link"
+
+
+def test_demo_refuses_its_out_folder_before_the_work(folder, capsys, monkeypatch):
+    import efam_mujoco.report as report
+
+    monkeypatch.setattr(report, "compare", lambda *a, **k: pytest.fail("computed before refusing --out"))
+    (folder / "a_file").write_text("x")
+    code, _, err = run_cli(["demo", "--out", "a_file"], folder, capsys)
+    assert code == 2 and "is a file, not a folder" in err
+    code, _, err = run_cli(["demo", "--out", "."], folder, capsys)
+    assert code == 2 and "is the folder you are in" in err
+
+
+def test_no_output_lands_inside_the_package_folder_even_in_a_checkout():
+    """An editable install's presets are inputs (a preset name reads them): --json over
+    efam_mujoco/presets/fam1.json replaced FAM1 for every later command."""
+    from importlib import resources
+
+    preset = Path(str(resources.files("efam_mujoco.presets").joinpath("fam1.json")))
+    with pytest.raises(OutputError, match="inside the installed package"):
+        check_outputs({"--json": str(preset)}, {})
+
+
 @pytest.mark.parametrize(
     "name, expected",
     [
@@ -428,9 +495,13 @@ def test_a_muscle_name_cannot_break_the_generated_xml(tmp_path):
 
 def test_demo_replaces_its_previous_folder_only(folder, capsys):
     assert run_cli(["demo", "--out", "d"], folder, capsys)[0] == 0
-    (folder / "d" / "stale.png").write_bytes(b"old")
-    assert run_cli(["demo", "--out", "d"], folder, capsys)[0] == 0
-    assert "stale.png" not in os.listdir(folder / "d")
+    assert "force_stroke_fam1.png" in os.listdir(folder / "d")
+    assert run_cli(["demo", "--muscle", "FAM2", "--out", "d"], folder, capsys)[0] == 0
+    assert "force_stroke_fam1.png" not in os.listdir(folder / "d")  # the earlier report's, gone
+    (folder / "d" / "my_notes.txt").write_text("mine")  # a file the user keeps there: not deleted
+    code, _, err = run_cli(["demo", "--out", "d"], folder, capsys)
+    assert code == 2 and "my_notes.txt is not a file the report wrote" in err
+    assert (folder / "d" / "my_notes.txt").read_text() == "mine"
 
 
 def test_check_outputs_api(tmp_path):
@@ -553,7 +624,12 @@ def test_view_check_refuses_a_law_that_overflows(tmp_path, capsys):
             'key="rest_length_m" value="', 'key="rest_length_m" value="-'
         )
     )
-    run_bad(["view", "bad.xml", "--check"], tmp_path, capsys, r"config key 'rest_length_m'.*must be positive")
+    run_bad(
+        ["view", "bad.xml", "--check"],
+        tmp_path,
+        capsys,
+        r"config key 'rest_length_m'.*must be in 0.0001 .. 10 m",
+    )
 
 
 def test_rejected_configs_then_a_good_one(tmp_path):
@@ -650,3 +726,32 @@ def test_muscle_json_is_strict_and_complete(folder, capsys):
     assert doc["sign"].startswith("blocked_force_N positive = the muscle pushes")
     assert doc["rows"][1]["blocked_push_N"] == doc["rows"][1]["blocked_force_N"]
     assert doc["rows"][1]["blocked_push_N"]["analytic"] > 0  # an EFAM pushes
+
+
+def test_mujoco_log_that_cannot_be_written_is_not_silent(tmp_path, capsys):
+    """A log in a missing folder is refused before the work; a log that fails while writing (a
+    full disk) still shows the warning on standard error instead of dropping it."""
+    from efam_mujoco import files
+
+    missing = tmp_path / "no_such_folder" / "mujoco.log"
+    code, _, err = run_cli(["--mujoco-log", str(missing), "muscle", "FAM1"], tmp_path, capsys)
+    assert code == 2 and "cannot append to it" in err and not missing.parent.exists()
+    if Path("/dev/full").exists():
+        try:
+            files.route_mujoco_log("/dev/full")
+            files._mujoco_warning("Nan, Inf or huge value in QACC at DOF 0")
+        finally:
+            files.route_mujoco_log(None)
+        err = capsys.readouterr().err
+        assert "huge value in QACC" in err and "not written to --mujoco-log /dev/full" in err
+
+
+@pytest.mark.parametrize("value", ["1_000", "\uff17\uff15", "nan", "inf", "0x10", "75 kPa"])
+def test_number_flags_read_plain_decimals_only(tmp_path, capsys, value):
+    """Python's float() reads '1_000', full-width digits, 'nan' and 'inf': every float and int
+    flag of every command reads plain ASCII decimals, as the recordings do."""
+    code, _, err = run_cli(["muscle", "FAM1", f"--pressures-kPa={value}"], tmp_path, capsys)
+    assert code == 2 and "argument --pressures-kPa" in err and repr(value) in err
+    if value not in ("nan", "inf"):
+        code, _, err = run_cli(["suite", f"--seed={value}"], tmp_path, capsys)
+        assert code == 2 and "argument --seed" in err

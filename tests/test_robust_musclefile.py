@@ -182,19 +182,36 @@ CASES = [
     ("top-level list", b"[1, 2, 3]", [r"JSON object at the top level"]),
     ("empty file", b"", [r"line 1, column 1: not valid JSON"]),
     ("truncated", json.dumps(fam1())[:200].encode(), [r"not valid JSON"]),
-    ("NaN token", json.dumps(fam1()).replace("33.62", "NaN").encode(), [r"'NaN' is not a JSON number"]),
+    # the line and column the README promises, found for the refusals json's hooks make
+    (
+        "NaN token",
+        json.dumps(fam1(), indent=1).replace("33.62", "NaN").encode(),
+        [r"line 20, column 18: .*'NaN' is not a JSON number"],
+    ),
     (
         "Infinity token",
         json.dumps(fam1()).replace("33.62", "Infinity").encode(),
-        [r"'Infinity' is not a JSON number"],
+        [r"line 1, column \d+: .*'Infinity' is not a JSON number"],
     ),
     (
         "duplicate key",
         json.dumps(fam1())
         .replace('"tension_only": false', '"tension_only": false, "tension_only": true')
         .encode(),
-        [r"key 'tension_only' appears twice"],
+        [r"line 1, column \d+: .*key 'tension_only' appears twice"],
     ),  # fmt: skip
+    # a key repeated in one law's block, a key every law's block has once: the line of the repeat
+    (
+        "duplicate key in a nested block",
+        json.dumps(fam1(), indent=1).replace('"E4": ', '"E4": 1.0,\n   "E4": ', 1).encode(),
+        [r"line \d+, column 4: .*key 'E4' appears twice"],
+    ),
+    ("NUL in the name", edited(name="FAM\u0000"), [r"key 'name' holds the character U\+0000"]),
+    (
+        "half a surrogate pair in the name",
+        json.dumps(fam1()).replace('"FAM1"', '"FAM\\ud800"', 1).encode(),
+        [r"key 'name' holds the character U\+D800"],
+    ),
     (
         "non-UTF-8",
         json.dumps(fam1()).replace("FAM1", "FAM\u00e9").encode("latin-1"),
@@ -289,3 +306,24 @@ def test_calibrated_file_reads_back(tmp_path, capsys):
         "cal_blocked.png", "cal_stress.png", "cal_strokes.png",
     ]  # fmt: skip
     assert "treated as isobaric strokes at 2 pressure levels" in copy.deepcopy(out)
+
+
+@pytest.mark.parametrize(
+    "change, key",
+    [
+        ({"theta_rest_deg": 1.0}, "theta_rest_deg"),
+        ({"deadband_Pa": 1e30}, "deadband"),
+        ({"rest_length_m": 170.0}, "rest_length_m"),
+    ],  # fmt: skip
+)
+def test_save_muscle_refuses_what_the_reader_would(tmp_path, change, key):
+    """save_muscle wrote these, and every later command refused the file it wrote."""
+    from dataclasses import replace
+
+    from efam_mujoco.musclefile import save_muscle
+
+    with pytest.raises(MuscleFileError, match=key):
+        save_muscle(tmp_path / "m.json", replace(load_muscle("FAM1"), **change))
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(TypeError, match="muscle must be a Muscle"):  # the arguments swapped
+        save_muscle(load_muscle("FAM1"), tmp_path / "m.json")

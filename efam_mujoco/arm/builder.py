@@ -21,6 +21,7 @@ joints, so the muscle forces are exact functions of the strains and conservative
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -464,15 +465,38 @@ def gravity_in_base(arm: ArmSpec) -> np.ndarray:
     return rotation.reshape(3, 3).T @ np.array([0.0, 0.0, -9.81])
 
 
+#: Most MuJoCo steps one :func:`settle` takes (counted, not timed). The settles the package asks
+#: for are 1-60 s of simulated time, 60 000 steps at the default arm's 1 ms; a small, light
+#: section's chosen step can be 1 us, where 40 s is 4e7 steps (half an hour): it stops here
+#: instead, unsettled, with a warning (about 20 s of CPU for a small arm).
+MAX_SETTLE_STEPS = 500_000
+
+
 def settle(
-    model: mujoco.MjModel, data: mujoco.MjData, pressures_Pa, t_max_s: float = 6.0, vel_tol: float = 1e-6
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    pressures_Pa,
+    t_max_s: float = 6.0,
+    vel_tol: float = 1e-6,
+    max_steps: int = MAX_SETTLE_STEPS,
 ) -> bool:
-    """Hold the pressures and step until the arm is still (or ``t_max_s`` of simulated time);
-    returns whether it settled. Raises if the state stops being finite."""
+    """Hold the pressures and step until the arm is still (or ``t_max_s`` of simulated time, or
+    ``max_steps`` steps: then a warning says how far it got); returns whether it settled. Raises
+    if the state stops being finite."""
     data.ctrl[:] = np.ravel(pressures_Pa)
+    steps = 0
     while data.time < t_max_s:
+        if steps >= max_steps:
+            warnings.warn(
+                f"arm.settle: stopped after {steps} steps of {model.opt.timestep * 1e3:g} ms at t = "
+                f"{data.time:.4g} s of the {t_max_s:g} s asked for (the step bound); the arm is not at rest",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            return False
         for _ in range(100):
             mujoco.mj_step(model, data)
+        steps += 100
         if not np.all(np.isfinite(data.qpos)):
             raise FloatingPointError(f"arm state not finite at t = {data.time:.3f} s")
         if np.abs(data.qvel).max() < vel_tol:
@@ -676,7 +700,9 @@ def static_equilibrium(
     left at the best point found)."""
     for _ in range(rounds):
         if model.dof_damping.any() or model.tendon_damping.any():
-            settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0)
+            # a short settle by design (Newton follows): its whole length, whatever the step
+            steps = int(math.ceil(settle_s / model.opt.timestep)) + 100
+            settle(model, data, pressures_Pa, t_max_s=data.time + settle_s, vel_tol=0.0, max_steps=steps)
         else:
             _quenched_settle(model, data, pressures_Pa, settle_s)
         data.ctrl[:] = np.ravel(pressures_Pa)

@@ -4,6 +4,7 @@ MuJoCo tip with the continuum reference."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from dataclasses import asdict
@@ -14,8 +15,9 @@ import numpy as np
 
 from ..files import write_json_atomic, write_text_atomic
 from ..musclefile import load_muscle
+from ..progress import progress
 from .builder import MODELS_DIR, arm_xml, build_model, static_equilibrium, tip_in_base, write_models
-from .continuum import solve_arm_spec
+from .continuum import ContinuumError, solve_arm_spec
 from .spec import (
     DEFAULT_DISKS,
     MAX_MUSCLES_PER_SECTION,
@@ -26,29 +28,128 @@ from .spec import (
 )
 from .timestep import NUMERIC_NAME, recorded_timestep
 
+#: Tip distance (% of the arm's rest length) within which the MuJoCo arm and the continuum
+#: reference agree: the benchmark's worst case over random pressures is well under 1 % (gravity
+#: off, docs/arms.md) and loaded arms within their validity agree to about 0.4 %; beyond 5 % the
+#: two figures describe different shapes and ``efam arm`` says so.
+AGREEMENT_PCT = 5.0
+#: A tip moved farther than this share of the rest length by the loads (from the unloaded arm)
+#: is a large deflection: past the range the two models are compared in.
+LARGE_DEFLECTION = 0.5
+#: ``efam arm`` refuses arms with more degrees of freedom than this (4 per spacer disk: two
+#: slides and two hinges) unless ``--allow-large``: choosing the time step and finding the rest
+#: state need the stiffness matrix (one MuJoCo evaluation per degree of freedom) and dense
+#: eigen/least-squares solves (their cost grows as the cube), and MuJoCo's compiler, a single C
+#: call that Ctrl-C and SIGTERM cannot interrupt, grows quickly too. 480 (e.g. 3 sections x 24
+#: muscles x 40 disks) takes about a minute on one core; 20 x 24 x 40 (3200) took longer than 2
+#: minutes in the compiler alone, deaf to SIGTERM.
+MAX_DEGREES_OF_FREEDOM = 480
+
+
+def degrees_of_freedom(arm: ArmSpec) -> int:
+    """The arm model's degrees of freedom without building it: per spacer disk two slides and
+    two hinges (segmented and PCC alike)."""
+    return 4 * sum(section.disks for section in arm.sections)
+
+
+def _bend_deg(model, data) -> float:
+    """Angle (deg) between the base's axis and the tip's: the MuJoCo arm's total bend."""
+    base = data.xmat[model.body("base").id].reshape(3, 3)
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, data.sensor("tip_quat").data)
+    axis = base.T @ rotation.reshape(3, 3)[:, 2]
+    return float(np.degrees(math.acos(np.clip(axis[2], -1.0, 1.0))))
+
 
 def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force_N=(0.0, 0.0, 0.0)) -> dict:
     """Tip position at rest under constant pressures, in the base frame: the MuJoCo arm
     (:func:`~efam_mujoco.arm.builder.static_equilibrium`) and the continuum reference with the
-    arm's own weight and payload (``tip_force_N``: an extra load on the continuum only)."""
-    model = build_model(arm)
-    data = mujoco.MjData(model)
-    choice = recorded_timestep(model)
-    settled = static_equilibrium(model, data, [p for section in pressures_Pa for p in section])
-    simulated = tip_in_base(model, data)
-    state = solve_arm_spec(arm, [list(p) for p in pressures_Pa], tip_force_N=tip_force_N)
-    predicted = state.tip_position_m
-    return {
+    arm's own weight and payload (``tip_force_N``: an extra load on the continuum only).
+
+    A continuum reference that does not converge is reported (``continuum_error``, its tip
+    ``None``), never raised; ``agreement`` says whether the two tips agree within
+    :data:`AGREEMENT_PCT` and, when not, the likely reasons."""
+    pressures = [list(p) for p in pressures_Pa]
+    steps = ("building the arm, choosing its time step", "MuJoCo rest state", "continuum reference")
+    for step in progress(steps, "efam arm", total=len(steps)):
+        if step == steps[0]:
+            model = build_model(arm)
+            data = mujoco.MjData(model)
+            choice = recorded_timestep(model)
+        elif step == steps[1]:
+            settled = static_equilibrium(model, data, [p for section in pressures for p in section])
+            simulated = tip_in_base(model, data)
+        else:
+            try:
+                state, error = solve_arm_spec(arm, pressures, tip_force_N=tip_force_N), None
+            except ContinuumError as err:
+                state, error = None, str(err)
+    result = {
         "settled": bool(settled),
         "tip_mujoco_m": simulated.tolist(),
-        "tip_continuum_m": np.asarray(predicted).tolist(),
-        "tip_statics_m": np.asarray(predicted).tolist(),  # the former name of tip_continuum_m
-        "difference_pct_of_rest_length": float(
-            100 * np.linalg.norm(simulated - predicted) / arm.rest_length_m
-        ),
-        "section_bend_deg": [float(np.degrees(sec.bend_angle_rad)) for sec in state.sections],
+        "bend_mujoco_deg": _bend_deg(model, data),
         "timestep": {**asdict(choice), "description": choice.describe()},
     }
+    if state is None:
+        result.update(
+            tip_continuum_m=None, tip_statics_m=None, difference_pct_of_rest_length=None,
+            section_bend_deg=None, continuum_error=error,
+        )  # fmt: skip
+        result["agreement"] = {"tolerance_pct": AGREEMENT_PCT, "agree": False,
+                               "reasons": [f"the continuum reference did not converge ({error})"]}  # fmt: skip
+        return result
+    predicted = np.asarray(state.tip_position_m)
+    difference = float(100 * np.linalg.norm(simulated - predicted) / arm.rest_length_m)
+    result.update(
+        tip_continuum_m=predicted.tolist(),
+        tip_statics_m=predicted.tolist(),  # the former name of tip_continuum_m
+        difference_pct_of_rest_length=difference,
+        section_bend_deg=[float(np.degrees(sec.bend_angle_rad)) for sec in state.sections],
+    )
+    agree = difference <= AGREEMENT_PCT
+    reasons = [] if agree else _disagreement_reasons(arm, pressures, state, result)
+    result["agreement"] = {"tolerance_pct": AGREEMENT_PCT, "agree": agree, "reasons": reasons}
+    return result
+
+
+def _disagreement_reasons(arm: ArmSpec, pressures, state, result: dict) -> list[str]:
+    """Why the MuJoCo arm and the continuum reference likely disagree (most telling first)."""
+    reasons = []
+    curled = [(j + 1, b) for j, b in enumerate(result["section_bend_deg"]) if b > 180.0]
+    if curled and result["bend_mujoco_deg"] < max(b for _, b in curled) - 45.0:
+        j, b = curled[0]
+        reasons.append(
+            f"the continuum reference curled past a half turn (section {j} bent {b:.0f} deg, MuJoCo's "
+            f"whole arm {result['bend_mujoco_deg']:.0f} deg): under a load this large its shooting can "
+            "converge to an unstable, curled-over equilibrium; MuJoCo's arm settled into the stable one"
+        )
+    for j, (section, sec_state) in enumerate(zip(arm.sections, state.sections)):
+        lows = [m.min_length_m for m in section.muscles]
+        highs = [m.max_length_m for m in section.muscles]
+        lengths = np.asarray(sec_state.muscle_lengths_m)
+        if np.any(lengths < np.array(lows) * 1.001) or np.any(lengths > np.array(highs) * 0.999):
+            reasons.append(
+                f"section {j + 1}'s muscles reach the end of their admissible lengths (lock-out) in the "
+                "continuum reference: outside the muscle model's validity range"
+            )
+            break
+    unloaded = solve_arm_spec(replace_loads(arm), pressures).tip_position_m
+    moved = float(np.linalg.norm(np.asarray(result["tip_mujoco_m"]) - unloaded) / arm.rest_length_m)
+    if moved > LARGE_DEFLECTION:
+        reasons.append(
+            f"large deflection: the loads move the MuJoCo tip {100 * moved:.0f} % of the rest length from the "
+            "unloaded arm (buckling or bending far beyond the small-strain range the two models are compared in)"
+        )
+    if not result["settled"]:
+        reasons.append("the MuJoCo arm's static equilibrium did not converge")
+    return reasons or ["unknown: neither a large deflection, lock-out nor an unsettled MuJoCo arm"]
+
+
+def replace_loads(arm: ArmSpec) -> ArmSpec:
+    """``arm`` without gravity or payload (its unloaded, constant-curvature shape)."""
+    from dataclasses import replace
+
+    return replace(arm, gravity=False, payload_kg=0.0)
 
 
 #: Bounds on ``efam arm``'s values (checked by efam_mujoco.cli before the command runs): sizes
@@ -114,6 +215,11 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
         help="one pressure per muscle, base section first: print the tip at rest, MuJoCo vs continuum reference",
     )  # fmt: skip
     parser.add_argument("--json", type=Path, help="write the equilibrium as JSON to this file")
+    parser.add_argument(
+        "--allow-large", action="store_true",
+        help=f"build arms beyond {MAX_DEGREES_OF_FREEDOM} degrees of freedom (4 per spacer disk) even so: "
+        "minutes to hours, and MuJoCo's compiler cannot be interrupted",
+    )  # fmt: skip
 
 
 def arm_from_args(args) -> ArmSpec:
@@ -154,6 +260,14 @@ def _run(args) -> int:
             print(path)
         return 0
     spec = arm_from_args(args)
+    dof = degrees_of_freedom(spec)
+    if dof > MAX_DEGREES_OF_FREEDOM and not args.allow_large:
+        raise ValueError(
+            f"--sections {args.sections} x --disks {args.disks}: {dof} degrees of freedom (4 per spacer "
+            f"disk), beyond the {MAX_DEGREES_OF_FREEDOM} this command builds in about a minute (the cost grows "
+            "as the cube: minutes to hours, in calls Ctrl-C cannot interrupt); use fewer disks (the continuum "
+            "reference does not depend on them) or sections, or pass --allow-large"
+        )
     if args.xml:
         write_text_atomic(args.xml, arm_xml(spec))
         print(f"wrote {args.xml} (its time step: custom numeric {NUMERIC_NAME!r})")
@@ -164,11 +278,24 @@ def _run(args) -> int:
             raise ValueError(f"--pressures-kPa: need {count} finite pressures >= 0, got {args.pressures_kPa}")
         sizes = np.cumsum([len(s.muscles) for s in spec.sections])[:-1]
         result = equilibrium(spec, np.split(pressures, sizes))
-        print(
-            f"tip at rest, base frame (mm): MuJoCo {np.round(1e3 * np.array(result['tip_mujoco_m']), 2)}, "
-            f"continuum reference {np.round(1e3 * np.array(result['tip_continuum_m']), 2)}; "
-            f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
-        )
+        mujoco_mm = np.round(1e3 * np.array(result["tip_mujoco_m"]), 2)
+        if result["tip_continuum_m"] is None:
+            print(f"tip at rest, base frame (mm): MuJoCo {mujoco_mm}, continuum reference: did not converge")
+            print(f"warning: {result['continuum_error']}", file=sys.stderr)
+        else:
+            print(
+                f"tip at rest, base frame (mm): MuJoCo {mujoco_mm}, "
+                f"continuum reference {np.round(1e3 * np.array(result['tip_continuum_m']), 2)}; "
+                f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
+            )
+            if not result["agreement"]["agree"]:
+                print(
+                    f"warning: the MuJoCo arm and the continuum reference disagree: their tips are "
+                    f"{result['difference_pct_of_rest_length']:.1f} % of the arm's rest length apart (they agree "
+                    f"within {AGREEMENT_PCT:g} % in the models' validity range); likely: "
+                    + "; ".join(result["agreement"]["reasons"]),
+                    file=sys.stderr,
+                )
         print(result["timestep"]["description"])
         if not result["settled"]:
             print("warning: the MuJoCo arm's static equilibrium did not converge", file=sys.stderr)

@@ -43,10 +43,28 @@ from ..units import check_pressure_Pa
 
 FORCE_SCALE_N = 100.0
 NEWTON_TOL = 1e-12  # on the constitutive residual, relative to FORCE_SCALE_N
+#: Work bounds of the loaded rod (counted, never timed, so the outcome does not depend on the
+#: machine). One evaluation = one constitutive (Newton) solve at one s, about 0.5 ms. A
+#: section's integration takes 100-300 of them for the paper's arms, under gravity and payloads
+#: alike; a load the section cannot carry pushes its muscles into lock-out, where the law is so
+#: steep that the integrator's step collapses (thousands per section, seconds each): beyond
+#: MAX_EVALUATIONS_PER_INTEGRATION that integration has failed (a step-size floor). The whole
+#: solve (fixed-point steps, shooting, the load walked in from zero) stops at MAX_EVALUATIONS:
+#: the heaviest known good case, the 1x3 paper arm horizontal with 1 kg, takes about 37 000.
+MAX_EVALUATIONS_PER_INTEGRATION = 1000
+MAX_EVALUATIONS = 60_000
 
 
 class ContinuumError(RuntimeError):
-    """The continuum equilibrium was not found."""
+    """The continuum equilibrium was not found (the reference did not converge)."""
+
+
+class ContinuumBudgetError(ContinuumError):
+    """The loaded rod's solve used up its work bound (:data:`MAX_EVALUATIONS`)."""
+
+
+class _IntegrationTooStiff(ContinuumError):
+    """One integration along a section needed more than :data:`MAX_EVALUATIONS_PER_INTEGRATION`."""
 
 
 # ------------------------------------------------------------------------ the cross-section
@@ -254,12 +272,17 @@ def solve_arm(
     point_masses: Sequence[PointMass] = (),
     line_densities_kg_per_m: Sequence[float] | None = None,
     samples_per_section: int = 41,
+    max_evaluations: int = MAX_EVALUATIONS,
 ) -> ArmState:
     """Equilibrium of the rod of ``sections`` (base first) at the given pressures.
 
     Loads in the arm's base frame: a force and a moment at the tip; gravity on the point masses
     and on each section's line density (kg per m of reference length). Without loads (no tip
     load, or no gravity and masses) the result is the CC solution of each section.
+
+    The loaded solve is bounded by ``max_evaluations`` constitutive solves (and each integration
+    along a section by :data:`MAX_EVALUATIONS_PER_INTEGRATION`); a solve that does not converge
+    within them raises :class:`ContinuumError` saying so (the reference did not converge).
     """
     if len(pressures_Pa) != len(sections):
         raise ValueError(f"{len(sections)} sections but {len(pressures_Pa)} pressure lists")
@@ -280,7 +303,7 @@ def solve_arm(
     cc = [solve_section_cc(s, p) for s, p in zip(sections, pressures_Pa)]
     if not loaded:
         return _cc_arm(cc, samples_per_section)
-    rod = _Rod(secs, densities, weights, F_tip, M_tip, g)
+    rod = _Rod(secs, densities, weights, F_tip, M_tip, g, max_evaluations)
     return rod.solve(cc, samples_per_section)
 
 
@@ -299,8 +322,9 @@ def _cc_arm(states, samples) -> ArmState:
 
 
 class _Rod:
-    def __init__(self, secs, densities, weights, F_tip, M_tip, g):
+    def __init__(self, secs, densities, weights, F_tip, M_tip, g, max_evaluations=MAX_EVALUATIONS):
         self.secs, self.densities, self.g = secs, densities, g
+        self.evaluations, self.max_evaluations = 0, int(max_evaluations)
         self.F_tip, self.M_tip = F_tip, M_tip
         # mass beyond each section's start (tip side), for n(s) in closed form
         self.point = [
@@ -328,6 +352,12 @@ class _Rod:
         tips, rots, backbone, states = [], [], [], []
 
         def strains_at(j, sec, s, y):
+            self.evaluations += 1
+            if self.evaluations > self.max_evaluations:
+                raise ContinuumBudgetError(
+                    f"the continuum reference did not converge within {self.max_evaluations} "
+                    "constitutive solves (a load the arm cannot carry: its muscles in lock-out?)"
+                )
             R_ = y[3:12].reshape(3, 3)
             n = self.force(j, s)
             target = np.array([-(n @ R_[:, 2]), -(y[12:] @ R_[:, 0]), -(y[12:] @ R_[:, 1])])
@@ -335,8 +365,15 @@ class _Rod:
             return memo["guess"], n
 
         for j, sec in enumerate(self.secs):
+            calls = [0]  # evaluations of the integration under way (reset for each)
 
-            def rhs(s, y, j=j, sec=sec):
+            def rhs(s, y, j=j, sec=sec, calls=calls):
+                calls[0] += 1
+                if calls[0] > MAX_EVALUATIONS_PER_INTEGRATION:  # the step has collapsed: stiff
+                    raise _IntegrationTooStiff(
+                        f"integration in section {j + 1} needed more than {MAX_EVALUATIONS_PER_INTEGRATION} "
+                        "steps (stiff: muscles at their lock-out?)"
+                    )
                 z, n = strains_at(j, sec, s, y)
                 R_ = y[3:12].reshape(3, 3)
                 dp = z[0] * R_[:, 2]
@@ -347,6 +384,7 @@ class _Rod:
             y = np.concatenate([p, R.ravel(), m])
             for a, b in zip(cuts[:-1], cuts[1:]):
                 grid = np.linspace(a, b, samples) if samples else None
+                calls[0] = 0
                 sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-9, atol=1e-12, t_eval=grid)
                 if not sol.success:
                     raise ContinuumError(f"integration failed in section {j + 1}: {sol.message}")
@@ -382,6 +420,8 @@ class _Rod:
             def residual(z):
                 try:
                     m_end = self._integrate(z * scale)[0]
+                except ContinuumBudgetError:
+                    raise
                 except ContinuumError:
                     return np.full(3, 1e3)
                 return (m_end - self.M_tip) / scale
@@ -394,22 +434,58 @@ class _Rod:
         for _ in range(4):
             try:
                 m0 = m0 - (self._integrate(m0)[0] - self.M_tip)
+            except ContinuumBudgetError:
+                raise
             except ContinuumError:
                 break
-        result, ok = attempt(1.0, m0 / scale)
-        if not ok:  # walk the loads in from the unloaded arm
+
+        def walk_in():
+            """The loads walked in from the unloaded arm (each step from the last solution):
+            the branch the real arm follows as it is loaded."""
             z = np.zeros(3)
             for fraction in np.linspace(0.0, 1.0, 11)[1:]:
                 result, ok = attempt(fraction, z)
                 if not ok:
                     break
                 z = result.x
+            return result, ok
+
+        result, ok = attempt(1.0, m0 / scale)
+        walked = not ok
+        if not ok:
+            result, ok = walk_in()
         self.F_tip, self.M_tip, self.g = full
         if not ok:
             raise ContinuumError(
                 f"no rod equilibrium found: {result.message} (residual {np.max(np.abs(result.fun)):.2e})"
             )
-        _, tips, rots, backbone, lengths = self._integrate(result.x * scale, samples)
+        state = self._state(result.x * scale, samples)
+        # the direct shot can land on a far branch: a section curled past a half turn that the
+        # unloaded arm does not have (measured: the 1x3 arm horizontal with 2 kg, 246 deg, where
+        # the walked-in load gives the arm's own 87 deg). Walk the loads in and keep that branch.
+        curled = [
+            st.bend_angle_rad > math.pi and cc.bend_angle_rad < math.pi
+            for st, cc in zip(state.sections, cc_states)
+        ]
+        if any(curled) and not walked:
+            try:
+                again, ok = walk_in()
+                self.F_tip, self.M_tip, self.g = full
+                if ok:
+                    other = self._state(again.x * scale, samples)
+                    if max(st.bend_angle_rad for st in other.sections) < max(
+                        st.bend_angle_rad for st in state.sections
+                    ):
+                        state = other
+            except ContinuumBudgetError:  # no budget left to check: the direct solution stands
+                pass
+            finally:
+                self.F_tip, self.M_tip, self.g = full
+        return state
+
+    def _state(self, m0, samples) -> ArmState:
+        """The :class:`ArmState` of the rod shot from the base moment ``m0`` (sampled)."""
+        _, tips, rots, backbone, lengths = self._integrate(m0, samples)
         states = []
         for sec, L in zip(self.secs, lengths):
             mean_stretch = L / sec.length

@@ -11,14 +11,14 @@ from __future__ import annotations
 
 from .diagnosis import ArmDiagnosis, diagnose_arm
 from .effects import EFFECT_NAMES, LIBRARY
-from .recording import ArmRecording, ArmRecordingError, read_csv, write_csv
+from .recording import ArmRecording, ArmRecordingError, ArmRecordingWarning, read_csv, write_csv
 from .replay import Knobs, Replayer
 from .specfile import ArmModelError, load_arm_model, load_spec, save_spec
 
 __all__ = [
     "ArmDiagnosis", "diagnose_arm", "EFFECT_NAMES", "LIBRARY", "ArmRecording", "ArmRecordingError",
-    "read_csv", "write_csv", "Knobs", "Replayer", "ArmModelError", "load_arm_model", "load_spec",
-    "save_spec", "register_cli",
+    "ArmRecordingWarning", "read_csv", "write_csv", "Knobs", "Replayer", "ArmModelError", "load_arm_model",
+    "load_spec", "save_spec", "register_cli",
 ]  # fmt: skip
 
 

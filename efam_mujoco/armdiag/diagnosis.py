@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -50,8 +51,17 @@ from . import design
 from .effects import LIBRARY, get, refit_knobs, refit_params
 from .fit import FitResult, fit, residual
 from .locate import locate, noise_floor
-from .recording import ArmRecording
-from .replay import Knobs, Replayer, default_threads
+from .recording import (
+    TIME,
+    TYPICAL_INTERVAL_S,
+    ArmRecording,
+    ArmRecordingError,
+    ArmRecordingWarning,
+    check_against_model,
+    unit_hint,
+)
+from .replay import SETTLE_S, Knobs, Replayer, default_threads
+from .specfile import model_limits
 
 BLOCKS = 6
 HELD_OUT_BLOCKS = (1, 4)
@@ -78,6 +88,15 @@ WINDOW_TRAIN_S = 10.0
 #: the runner-up is told apart from the best when its per-segment log error ratio is positive at
 #: this one-sided level (Student t)
 SEGMENTS_MIN, SEGMENTS_MAX = 8, 32
+#: Longest replay (settling included) the diagnosis starts, in time steps of the arm model. Every
+#: rollout keeps the full state and the sensors at every step for every variant of its batch
+#: (about 1 kB per step for the 1x3 arm), the whole-recording replays batch a dozen variants, and
+#: the search replays its window a few hundred times: 200 000 steps (200 s at the default arm's
+#: 1 ms) is some 200 MB per variant and tens of minutes of CPU. The parameters are constants of the
+#: arm, found from the first 10 s of training time, so a longer recording adds little: cut it. A
+#: recording in ms under a 's' header (a 6 s test reads as 6000 s) is far beyond the bound and is
+#: refused here, before any rollout, with the unit that fits.
+MAX_REPLAY_STEPS = 200_000
 #: t reported when every segment gives the same nonzero log ratio (finite, for JSON)
 T_SURE = 1e6
 PAIRED_LEVEL = 0.95
@@ -151,6 +170,28 @@ def _jsonable(x):
     return x
 
 
+def check_replay_work(rec: ArmRecording, timestep_s: float, settle_s: float = SETTLE_S) -> int:
+    """The time steps of one replay of ``rec`` (settling included) with the model's step;
+    :class:`.recording.ArmRecordingError` naming the time column when beyond
+    :data:`MAX_REPLAY_STEPS` (with the unit its numbers fit, a unit mix-up being the usual cause)."""
+    steps = int(round(settle_s / timestep_s)) + int(math.floor(rec.duration_s / timestep_s)) + 1
+    if steps > MAX_REPLAY_STEPS:
+        column = rec.meta.get("time_column", "time_s")
+        interval = float(np.median(np.diff(rec.time_s)))
+        longest = (MAX_REPLAY_STEPS - 1) * timestep_s - settle_s
+        hint = unit_hint(column, interval, TYPICAL_INTERVAL_S, TIME)
+        raise ArmRecordingError(
+            f"{rec.meta.get('source', 'recording')}: column '{column}': the recording spans "
+            f"{rec.duration_s:.4g} s ({interval:.4g} s between samples): one replay is {steps} steps of "
+            f"the model's {timestep_s * 1e3:g} ms, beyond the diagnosis's limit of {MAX_REPLAY_STEPS} "
+            f"(memory and time for a few hundred replays)"
+            + (f"; a time unit mix-up?{hint}" if hint else "")
+            + f"; otherwise cut the recording to its first {longest:.0f} s (the search uses its first 10 s "
+            "of training time)"
+        )
+    return steps
+
+
 def folds(time_s: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(training rows, held-out rows): contiguous time blocks, dropouts in neither."""
     edges = np.linspace(time_s[0], time_s[-1], BLOCKS + 1)
@@ -202,6 +243,10 @@ def diagnose_arm(
     :func:`.specfile.load_arm_model` or :func:`efam_mujoco.arm.build_spec`)."""
     clock = time.process_time()
     rec = recording
+    limits = model_limits(spec)
+    for note in check_against_model(rec, limits["max_command_Pa"], limits["base_m"], limits["rest_reach_m"]):
+        warnings.warn(note, ArmRecordingWarning, stacklevel=2)
+    check_replay_work(rec, limits["timestep_s"])
     replayer = Replayer(spec, rec.time_s, rec.command_Pa, threads=threads or default_threads())
     if replayer.muscles != rec.muscles:
         raise ValueError(

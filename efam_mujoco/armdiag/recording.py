@@ -23,7 +23,11 @@ column                meaning
 
 The arm is taken to be at rest under the first row's commands at the first time. Bad input
 (unknown column, unknown unit, a missing muscle, a non-numeric or non-finite value, a
-negative pressure, time not increasing) is an error naming the file, the line and the column.
+negative pressure, time not increasing, a time base no recorder makes) is an error naming the
+file, the line and the column. Against the arm model (:func:`check_against_model`): commands far
+above the model's highest pressure and tip positions farther from the base than the arm can
+reach are errors too (a unit mix-up, with the unit that fits); commands a little above that
+pressure are replayed at it, with a warning that counts them.
 """
 
 from __future__ import annotations
@@ -37,11 +41,39 @@ from pathlib import Path
 import numpy as np
 
 from ..files import write_text_atomic
-from ..units import UnitError, factor
+from ..units import LENGTH, PRESSURE, TIME, UnitError, factor, split_unit
 
 
 class ArmRecordingError(ValueError):
     """An arm recording that cannot be read; the message names the file, line and column."""
+
+
+class ArmRecordingWarning(UserWarning):
+    """Something in an arm recording that the replay changes (commands above the model's
+    highest pressure, replayed at it); the message names the column and counts the samples."""
+
+
+#: Median sample intervals a recorder makes (1 MHz .. one sample a minute), as the muscle-level
+#: reader (:mod:`efam_mujoco.recordings`) accepts: outside them the time column's unit is wrong.
+MIN_INTERVAL_S, MAX_INTERVAL_S = 1e-6, 60.0
+#: Longest recording read (s): one arm test is seconds to minutes (the benchmark's are 15 s, the
+#: diagnosis searches the first 10 s of training time), and four hours is more than a lab session
+#: of one arm with one tip marker. A test of 15 s or more written in ms under a 's' header reads
+#: as more than 4 h; shorter mix-ups are caught by the replay bound of the diagnosis
+#: (:data:`efam_mujoco.armdiag.diagnosis.MAX_REPLAY_STEPS`).
+MAX_DURATION_S = 4 * 3600.0
+#: Commands up to this multiple of the model's highest pressure (the actuators' control range, the
+#: arm's rated pressure) are replayed at that pressure with a warning (a regulator overshooting
+#: the rating); beyond it a value cannot be a command for this arm (Pa under a kPa header, psi
+#: under kPa) and the recording is refused.
+COMMAND_REFUSE_FACTOR = 2.0
+#: A tip farther from the base than this multiple of the arm's rest length (straight, at zero
+#: pressure) cannot be physical: an EFAM extends to at most about 4.5 x its resting length
+#: (FAM1: 0.771 m / 0.170 m, braid-limited), so 10 x leaves a wide margin and still catches a
+#: tip in mm (1000 x) or cm (100 x) under an 'm' header.
+REACH_FACTOR = 10.0
+#: The sample interval a unit hint aims for: arm tip trackers sample at 30-200 Hz.
+TYPICAL_INTERVAL_S = 0.01
 
 
 @dataclass
@@ -184,13 +216,14 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
     scale = np.array([role[2] for role in roles])
     values = values * scale
     t = values[:, col["time", None]]
+    time_name = header[col["time", None]].strip()
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         line = rows[1 + bad[0] + 1][0]
         raise ArmRecordingError(
-            f"{label}: line {line}, column {col['time', None] + 1} ('{header[col['time', None]].strip()}'): "
-            "time not increasing"
+            f"{label}: line {line}, column {col['time', None] + 1} ('{time_name}'): time not increasing"
         )
+    _check_time_base(t, f"{label}: column {col['time', None] + 1} ('{time_name}')", time_name)
     commands = np.column_stack([values[:, col["command", m]] for m in muscles])
     measured = None
     if all(("measured", m) in col for m in muscles):
@@ -204,8 +237,113 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         "source": label,
         "columns": [h.strip() for h in header],
         "dropouts": int(np.isnan(tip[:, 0]).sum()),
+        "lines": [line for line, _ in rows[1:]],  # the file line of each sample
+        "time_column": time_name,
+        "command_columns": [header[col["command", m]].strip() for m in muscles],
+        "tip_columns": [header[col["tip", a]].strip() for a in _TIP_AXES],
     }
     return ArmRecording(t, list(muscles), commands, tip, measured, extra, meta)
+
+
+def unit_hint(column: str, value_si: float, target_si: float, table: dict) -> str:
+    """``"; the numbers fit 'time_ms'"``: the unit of ``table`` under which the column's numbers
+    (``value_si`` read with the header's unit) would be nearest ``target_si``; empty when that is
+    the header's own unit or the header's unit is not in ``table``."""
+    base, unit = split_unit(column)
+    if unit not in table or not value_si or not math.isfinite(value_si):
+        return ""
+    raw = abs(value_si) / table[unit]
+    best = min(table, key=lambda u: abs(math.log(raw * table[u] / target_si)))
+    return f"; the numbers fit '{base}_{best}'" if best != unit else ""
+
+
+def _check_time_base(t: np.ndarray, where: str, column: str) -> None:
+    """Refuse a time column no recorder writes in that unit (:data:`MIN_INTERVAL_S` ..
+    :data:`MAX_INTERVAL_S` between samples, at most :data:`MAX_DURATION_S` long)."""
+    interval = float(np.median(np.diff(t)))
+    if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
+        raise ArmRecordingError(
+            f"{where}: the median sample interval is {interval:.4g} s; a recorder samples every "
+            f"{MIN_INTERVAL_S:g} .. {MAX_INTERVAL_S:g} s (a time unit mix-up?)"
+            + unit_hint(column, interval, TYPICAL_INTERVAL_S, TIME)
+        )
+    duration = float(t[-1] - t[0])
+    if duration > MAX_DURATION_S:
+        raise ArmRecordingError(
+            f"{where}: the recording spans {duration:.4g} s ({duration / 3600:.3g} h), longer than the "
+            f"{MAX_DURATION_S / 3600:g} h an arm recording can be (a time unit mix-up?)"
+            + unit_hint(column, interval, TYPICAL_INTERVAL_S, TIME)
+        )
+
+
+def _line(rec: ArmRecording, row: int) -> str:
+    lines = rec.meta.get("lines")
+    return f"line {lines[row]}" if lines is not None and len(lines) == len(rec) else f"sample {row + 1}"
+
+
+def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m: float) -> list[str]:
+    """Check a recording against its arm model before any replay.
+
+    ``max_command_Pa``: per muscle, the highest pressure the model takes (the actuators' control
+    range: MuJoCo clamps beyond it); ``base_m``: the base's world position and ``rest_reach_m``
+    the base-to-tip distance of the straight arm at zero pressure. Refuses (:class:`ArmRecordingError`,
+    naming the column, the first line and the unit that fits) commands above
+    :data:`COMMAND_REFUSE_FACTOR` x the highest pressure and tips farther from the base than
+    :data:`REACH_FACTOR` x the rest reach. Returns one message per column with commands a little
+    above the highest pressure (replayed at it: the caller warns, never silent)."""
+    src = rec.meta.get("source", "recording")
+    max_Pa = np.broadcast_to(np.asarray(max_command_Pa, float), (len(rec.muscles),))
+    columns = rec.meta.get("command_columns") or [f"p_{m}_Pa" for m in rec.muscles]
+    notes = []
+    for i, (m, name) in enumerate(zip(rec.muscles, columns)):
+        p, top = rec.command_Pa[:, i], float(max_Pa[i])
+        if not math.isfinite(top):
+            continue
+        unit = split_unit(name)[1]
+        shown = PRESSURE.get(unit, 1.0)
+        unit = unit if unit in PRESSURE else "Pa"
+        far = np.flatnonzero(p > COMMAND_REFUSE_FACTOR * top)
+        if far.size:
+            r = int(far[0])
+            fits = [u for u in PRESSURE if np.max(p) / shown * PRESSURE[u] <= top]
+            hint = ""
+            if fits:  # the unit that puts the column's largest value nearest the top pressure
+                best = max(fits, key=lambda u: PRESSURE[u])
+                hint = f"; was it {best}? the numbers fit '{split_unit(name)[0]}_{best}'"
+            raise ArmRecordingError(
+                f"{src}: {_line(rec, r)}, column '{name}': command {p[r] / shown:g} {unit} is "
+                f"{p[r] / top:.3g} x the model's highest pressure {top / shown:g} {unit} (muscle {m}'s "
+                f"control range); {far.size} of {len(p)} samples are above {COMMAND_REFUSE_FACTOR:g} x it"
+                + hint
+            )
+        over = np.flatnonzero(p > top * (1 + 1e-9))
+        if over.size:
+            notes.append(
+                f"{src}: column '{name}': {over.size} of {len(p)} commands are above the model's highest "
+                f"pressure {top / shown:g} {unit} (up to {np.max(p) / shown:g} {unit}, first at "
+                f"{_line(rec, int(over[0]))}); they are replayed at {top / shown:g} {unit}"
+            )
+    if not rest_reach_m > 0:  # a model without a length (tip on the base): nothing to compare with
+        return notes
+    limit = REACH_FACTOR * float(rest_reach_m)
+    distance = np.linalg.norm(rec.tip_m - np.asarray(base_m, float), axis=1)
+    far = np.flatnonzero(np.isfinite(distance) & (distance > limit))
+    if far.size:
+        r = int(far[0])
+        tip_columns = rec.meta.get("tip_columns") or ["tip_x_m", "tip_y_m", "tip_z_m"]
+        axis = int(np.argmax(np.abs(rec.tip_m[r] - np.asarray(base_m, float))))
+        name = tip_columns[axis]
+        unit = split_unit(name)[1]
+        shown = LENGTH.get(unit, 1.0)
+        reach = float(np.nanmedian(distance))
+        raise ArmRecordingError(
+            f"{src}: {_line(rec, r)}, column '{name}': the tip is {distance[r]:.4g} m from the arm's base, "
+            f"{distance[r] / rest_reach_m:.3g} x the arm's rest length {rest_reach_m:.4g} m; no EFAM arm reaches "
+            f"beyond {REACH_FACTOR:g} x its rest length ({far.size} of {len(distance)} samples do; the value "
+            f"there: {rec.tip_m[r, axis] / shown:g} {unit if unit in LENGTH else 'm'})"
+            + unit_hint(name, reach, rest_reach_m, LENGTH)
+        )
+    return notes
 
 
 def write_csv(path: str | os.PathLike, rec: ArmRecording, digits: int = 6) -> Path:

@@ -57,6 +57,8 @@ FRICTION_SOLREF_STEPS = 2.0  # solref time constant, in time steps (the stiffest
 UNSTABLE_M, FAILED_TIP_M = 100.0, 1e3
 #: joint speed (m/s or rad/s) no arm reaches under pressure: beyond it a variant has diverged
 UNSTABLE_SPEED = 1e4
+#: simulated time at the first command before the recording's first sample, s (the arm at rest)
+SETTLE_S = 3.0
 #: rotational inertia of the compliant mount's hinges (kg m^2, a mount plate): less lets the
 #: stiffer mounts of the search range outrun the time step
 MOUNT_ARMATURE = 1e-3
@@ -101,7 +103,7 @@ class Replayer:
     spec: mujoco.MjSpec
     time_s: np.ndarray
     command_Pa: np.ndarray
-    settle_s: float = 3.0
+    settle_s: float = SETTLE_S
     threads: int = 1
     muscles: list[str] = field(init=False)
     nominal: Knobs = field(init=False)

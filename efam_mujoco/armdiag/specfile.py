@@ -24,6 +24,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from .. import plugin
 from ..arm import ArmSpec, SectionSpec, build_spec
@@ -137,3 +138,25 @@ def check_arm_model(spec: mujoco.MjSpec, label: str) -> None:
         raise ArmModelError(f"{label}: no sensor named 'tip_pos' (framepos of the tip)")
     if not spec.actuators:
         raise ArmModelError(f"{label}: no actuators (one per muscle, ctrl = gauge pressure in Pa)")
+
+
+def model_limits(spec: mujoco.MjSpec) -> dict:
+    """What a recording is checked against (:func:`.recording.check_against_model`), SI:
+    ``max_command_Pa`` per actuator (the top of its control range; inf when unlimited),
+    ``base_m`` the base's world position and ``rest_reach_m`` the base-to-tip distance in the
+    model's reference pose (the builder's: straight, every muscle at its rest length),
+    ``timestep_s``."""
+    plugin.load()
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    limited = np.asarray(model.actuator_ctrllimited, bool)
+    top = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+    base = data.xpos[model.body("base").id].copy()
+    tip = np.asarray(data.sensor("tip_pos").data[:3], float)
+    return {
+        "max_command_Pa": top,
+        "base_m": base,
+        "rest_reach_m": float(np.linalg.norm(tip - base)),
+        "timestep_s": float(model.opt.timestep),
+    }

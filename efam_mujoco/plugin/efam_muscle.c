@@ -137,6 +137,17 @@ static const char* const kAttributes[] = {
 #define FIRST_COEF_ATTRIBUTE 8
 #define LAST_COEF_ATTRIBUTE 13  // E4; the keys after it are not stress-law coefficients
 #define MAX_SEGMENTS 1024       // segments per muscle (config key `segments`)
+// What could be built (musclefile.py refuses the same in a muscle file: PLAUSIBLE, BRAID_ANGLE_DEG,
+// MIN_WALL_M, MAX_COEFFICIENT, MAX_DEADBAND_PA): outside these a config is a unit slip or a typo,
+// and the muscle it describes runs to hundreds of metres or meganewtons without a word
+#define MIN_SIZE_M 1e-4         // rest length and diameter: 0.1 mm ..
+#define MAX_SIZE_M 10.0         // .. 10 m
+#define MAX_VOLUME_M3 1.0       // bladder rubber volume
+#define MIN_BRAID_DEG 2.0       // braid angle at rest, from the circumference
+#define MAX_BRAID_DEG 88.0
+#define MIN_WALL_M 1e-5         // bladder wall at rest
+#define MAX_COEFFICIENT 1e12    // |stress-law coefficient|: stiffer than diamond
+#define MAX_DEADBAND_PA 1.0e6   // the largest pressure the package drives a muscle with
 
 // ----------------------------------------------------- scalar helpers (shared with efam_effects.h)
 
@@ -562,6 +573,12 @@ static double read_number(const mjModel* m, int instance, const char* key, int r
     }
     return fallback;
   }
+  // plain decimal only: strtod also reads hexadecimal ("0x1p-3" = 0.125), which no one means here
+  for (const char* c = text; *c; c++) {
+    if (*c == 'x' || *c == 'X' || *c == 'p' || *c == 'P') {
+      CONFIG_ERROR(m, instance, "config key '%s' must be a decimal number, got '%s'", key, text);
+    }
+  }
   char* end = NULL;
   errno = 0;
   double value = strtod(text, &end);
@@ -641,6 +658,10 @@ static void read_coefficients(const mjModel* m, int instance, Muscle* mu) {
                    expected);
     }
     double value = read_number(m, instance, key, 1, 0.0);
+    if (fabs(value) > MAX_COEFFICIENT) {
+      CONFIG_ERROR(m, instance, "config key '%s' = %.10g is beyond 1e12 in magnitude: no rubber's stress law "
+                   "comes near it (a unit slip?)", key, value);
+    }
     Bound b = law->bounds[k];
     int too_low = b.lo_open ? value <= b.lo : value < b.lo;
     int too_high = b.hi_open ? value >= b.hi : value > b.hi;
@@ -721,6 +742,12 @@ static void derive(const mjModel* m, int instance, Muscle* mu) {
                  mu->bladder_volume, mu->rest_length);
   }
   mu->rest_wall = wall(mu->bladder_volume, mu->rest_length, mu->rest_outer_radius);
+  if (!(mu->rest_wall >= MIN_WALL_M)) {
+    CONFIG_ERROR(m, instance,
+                 "config key 'bladder_volume_m3' = %.6g gives a bladder wall %.3g mm thick at rest, thinner than any "
+                 "bladder (0.01 mm): it is the volume of the bladder's rubber, not of the air inside",
+                 mu->bladder_volume, mu->rest_wall * 1e3);
+  }
 
   mu->thread_sq_pow = libm_pow(mu->thread, 2);
   mu->thread_sq_mul = mu->thread * mu->thread;
@@ -784,12 +811,16 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
   mu.deadband = read_number(m, instance, "deadband_Pa", 1, 0.0);
   mu.lock_stiffness = read_number(m, instance, "lock_stiffness_N_per_m", 0, DEFAULT_LOCK_STIFFNESS);
   mu.tension_only = read_flag(m, instance, "tension_only");
-  require(m, instance, mu.rest_length > 0, "rest_length_m", mu.rest_length, "must be positive");
-  require(m, instance, mu.rest_diameter > 0, "rest_diameter_m", mu.rest_diameter, "must be positive");
-  require(m, instance, mu.theta_rest_deg > 0 && mu.theta_rest_deg < 90, "theta_rest_deg", mu.theta_rest_deg,
-          "must be in (0, 90) deg");
-  require(m, instance, mu.bladder_volume > 0, "bladder_volume_m3", mu.bladder_volume, "must be positive");
-  require(m, instance, mu.deadband >= 0, "deadband_Pa", mu.deadband, "must not be negative");
+  require(m, instance, mu.rest_length >= MIN_SIZE_M && mu.rest_length <= MAX_SIZE_M, "rest_length_m",
+          mu.rest_length, "must be in 0.0001 .. 10 m (was it in mm?)");
+  require(m, instance, mu.rest_diameter >= MIN_SIZE_M && mu.rest_diameter <= MAX_SIZE_M, "rest_diameter_m",
+          mu.rest_diameter, "must be in 0.0001 .. 10 m (was it in mm?)");
+  require(m, instance, mu.theta_rest_deg >= MIN_BRAID_DEG && mu.theta_rest_deg <= MAX_BRAID_DEG,
+          "theta_rest_deg", mu.theta_rest_deg, "must be in 2 .. 88 deg: no braided sleeve is wound outside it");
+  require(m, instance, mu.bladder_volume > 0 && mu.bladder_volume <= MAX_VOLUME_M3, "bladder_volume_m3",
+          mu.bladder_volume, "must be in (0, 1] m^3");
+  require(m, instance, mu.deadband >= 0 && mu.deadband < MAX_DEADBAND_PA, "deadband_Pa", mu.deadband,
+          "must be in 0 .. 1e6 Pa: at 1000 kPa or more the muscle never inflates (was it in kPa?)");
   require(m, instance, mu.lock_stiffness >= 0, "lock_stiffness_N_per_m", mu.lock_stiffness,
           "must not be negative");
   mu.law = read_law(m, instance);

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .. import arm
+from ..arm.builder import MAX_SETTLE_STEPS
 from ..arm.continuum import solve_arm_spec
 from ..muscle import Muscle
 from ..statics import StaticsError
@@ -162,7 +163,10 @@ def bundle_report(muscle: Muscle, request: Request) -> BundleReport:
         notes.append(f"payload: MuJoCo diverged ({err})")
     deflection = Pair(ref_deflection, sim_deflection)
     if not settled:
-        notes.append(f"MuJoCo had not come to rest within {SETTLE_S:g} s in every case")
+        notes.append(
+            f"MuJoCo had not come to rest in every case (within {SETTLE_S:g} s of simulated time, or "
+            f"{MAX_SETTLE_STEPS} steps for a section whose time step is tiny): its figures are not at rest"
+        )
     return BundleReport(
         M,
         section.radius_m,

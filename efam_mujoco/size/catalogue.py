@@ -8,15 +8,52 @@ docs/sizing.md. A user can pass their own file with the same layout (``efam size
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..units import UnitError, read_quantity
+from ..musclefile import MAX_FILE_BYTES, MAX_REST_OVER_BLADDER, MIN_WALL_M, MuscleFileError, parse_json_text
+from ..units import UnitError, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.catalogue/1"
+
+#: Physical ranges of every catalogue quantity, SI: ``(low, high, low_open)``; a value outside
+#: cannot describe a part (most likely another unit than its key says, or a percentage written
+#: for a fraction). Lengths: a sleeve or tube from 0.1 mm to half a metre across; a braid from
+#: 0.01 mm to 10 mm thick; a bladder wall at least what a muscle file accepts (MIN_WALL_M).
+RANGES = {
+    "diameter": (1e-4, 0.5, False),
+    "thickness": (1e-5, 0.01, False),
+    "wall": (MIN_WALL_M, 0.05, False),
+    # no solid is lighter than 100 or denser than osmium's 22 590 kg/m^3
+    "density": (100.0, 25_000.0, False),
+    "fraction": (0.0, 1.0, True),  # a share of a volume: (0, 1]
+    # a rating up to 100 MPa (hydraulics); the sizing itself stops at rules.max_pressure
+    "pressure": (0.0, 100e6, True),
+    # latex breaks at 7.5 (750 %); no elastomer stretches 20 times its length (2000 %)
+    "elongation_at_break": (0.0, 20.0, True),
+    "strain_safety_factor": (1.0, 100.0, False),  # below 1 it is not a safety factor
+    # resting length over working bladder length, minus one: the muscle file's own bound
+    "length_growth": (1 / MAX_REST_OVER_BLADDER - 1, MAX_REST_OVER_BLADDER - 1, False),
+    "length_growth_spread": (0.0, MAX_REST_OVER_BLADDER - 1, False),
+    # the braid sits on the bladder, so the resting diameter is at least the tube's; at most 3x
+    "diameter_growth": (0.0, 2.0, False),
+    # the fitting core goes into the bladder's bore: about its size (Table 1: 1.12)
+    "fitting_core_per_bladder_inner_diameter": (0.5, 2.0, False),
+    "clamp_gap_per_wall": (0.0, 1.0, True),  # the clamp squeezes the wall: thinner, never thicker
+    "clamp_length_per_bladder_outer_diameter": (0.0, 20.0, True),
+    "swage_wall_per_bladder_outer_diameter": (0.0, 1.0, True),
+    "thread_thickness": (0.0, 0.005, True),
+    "cut_resolution": (0.0, 0.01, True),
+    # an EFAM's sleeve is gathered: at 45 deg at least as long as the muscle (Sec. 2)
+    "max_gather_ratio": (1.0, 50.0, False),
+    "min_aspect_ratio": (0.0, 100.0, True),
+    # Euler's effective-length factor: 0.5 (both ends fixed) .. 2 (one end free)
+    "euler_length_factor": (0.5, 2.0, False),
+}
+#: How a quantity is shown in messages: (unit, factor from SI).
+_SHOW = {"length": ("mm", 1e3), "pressure": ("kPa", 1e-3), "density": ("kg/m^3", 1.0), "": ("", 1.0)}
 
 
 class CatalogueError(ValueError):
@@ -113,16 +150,35 @@ class Catalogue:
     label: str = "built-in catalogue"
 
 
-def _number(block: dict, key: str, where: str, positive: bool = True) -> float:
+def _in_range(value: float, block: dict, base: str, where: str, kind: str, quantity: str = "") -> float:
+    """``value`` (SI) when inside ``RANGES[kind]``, else an error naming the entry, the key as the
+    file wrote it, the value in a readable unit and the range."""
+    lo, hi, low_open = RANGES[kind]
+    if (lo < value if low_open else lo <= value) and value <= hi:
+        return value
+    key = base if base in block else next((k for k in block if split_unit(k)[0] == base), base)
+    unit, scale = _SHOW[quantity]
+    u = f" {unit}" if unit else ""
+    shown = f" ({value * scale:g}{u})" if quantity in ("length", "pressure") else ""
+    bracket = "(" if low_open else "["
+    hint = (
+        "; a fraction, not a percentage" if kind in ("fraction", "elongation_at_break") and value > 1 else ""
+    )
+    raise CatalogueError(
+        f"{where}: key '{key}' = {block.get(key)!r}{shown} is outside the physical range "
+        f"{bracket}{lo * scale:g}, {hi * scale:g}]{u}{hint}"
+    )
+
+
+def _number(block: dict, key: str, where: str, kind: str | None = None) -> float:
     value = block.get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise CatalogueError(f"{where}: key '{key}' must be a finite number, got {value!r}")
-    if positive and value <= 0:
-        raise CatalogueError(f"{where}: key '{key}' must be positive, got {value!r}")
-    return float(value)
+    quantity = "density" if kind == "density" else ""
+    return _in_range(float(value), block, key, where, kind or key, quantity)
 
 
-def _length(block: dict, base: str, where: str, default=...):
+def _length(block: dict, base: str, where: str, kind: str, default=...):
     try:
         if default is ...:
             value = read_quantity(block, base, "length", where)
@@ -130,28 +186,49 @@ def _length(block: dict, base: str, where: str, default=...):
             value = read_quantity(block, base, "length", where, default=default)
     except UnitError as err:
         raise CatalogueError(str(err)) from None
-    if value is not None and not value > 0:
-        raise CatalogueError(f"{where}: '{base}' must be positive")
-    return value
+    return None if value is None else _in_range(value, block, base, where, kind, "length")
+
+
+def _pressure(block: dict, base: str, where: str, default=...):
+    try:
+        if default is ...:
+            value = read_quantity(block, base, "pressure", where)
+        else:
+            value = read_quantity(block, base, "pressure", where, default=default)
+    except UnitError as err:
+        raise CatalogueError(str(err)) from None
+    return None if value is None else _in_range(value, block, base, where, "pressure", "pressure")
 
 
 def _rating(block: dict, where: str):
-    try:
-        return read_quantity(block, "pressure_rating", "pressure", where, default=None)
-    except UnitError as err:
-        raise CatalogueError(str(err)) from None
+    return _pressure(block, "pressure_rating", where, default=None)
+
+
+def _entries(doc: dict, key: str, label: str) -> list:
+    entries = doc[key]
+    if not isinstance(entries, list) or not entries:
+        raise CatalogueError(f"{label}: '{key}' must be a non-empty list of entries")
+    for i, entry in enumerate(entries):
+        if not isinstance(entry, dict):
+            raise CatalogueError(f"{label}: {key}[{i}] must be a JSON object")
+    return entries
+
+
+def _where(label: str, key: str, i: int, entry: dict) -> str:
+    name = entry.get("name")
+    return f"{label}: {key}[{i}]" + (f" ('{name}')" if isinstance(name, str) else "")
 
 
 def _sleeve(entry: dict, where: str) -> Sleeve:
     sleeve = Sleeve(
         name=str(entry.get("name", where)),
         material=str(entry.get("material", "")),
-        reference_diameter_m=_length(entry, "reference_diameter", where),
-        min_diameter_m=_length(entry, "min_diameter", where),
-        max_diameter_m=_length(entry, "max_diameter", where),
-        thickness_m=_length(entry, "thickness", where),
-        fibre_fraction=_number(entry, "fibre_fraction", where),
-        density_kg_m3=_number(entry, "density_kg_per_m3", where),
+        reference_diameter_m=_length(entry, "reference_diameter", where, "diameter"),
+        min_diameter_m=_length(entry, "min_diameter", where, "diameter"),
+        max_diameter_m=_length(entry, "max_diameter", where, "diameter"),
+        thickness_m=_length(entry, "thickness", where, "thickness"),
+        fibre_fraction=_number(entry, "fibre_fraction", where, "fraction"),
+        density_kg_m3=_number(entry, "density_kg_per_m3", where, "density"),
         pressure_rating_Pa=_rating(entry, where),
     )
     if not sleeve.min_diameter_m <= sleeve.max_diameter_m:
@@ -160,65 +237,77 @@ def _sleeve(entry: dict, where: str) -> Sleeve:
 
 
 def _tubing(entry: dict, where: str) -> Tubing:
-    inner = _length(entry, "inner_diameter", where)
-    wall = _length(entry, "wall", where, default=None)
-    outer = _length(entry, "outer_diameter", where, default=None)
+    inner = _length(entry, "inner_diameter", where, "diameter")
+    wall = _length(entry, "wall", where, "wall", default=None)
+    outer = _length(entry, "outer_diameter", where, "diameter", default=None)
     if (wall is None) == (outer is None):
         raise CatalogueError(f"{where}: give exactly one of 'wall_<unit>' and 'outer_diameter_<unit>'")
     outer = inner + 2 * wall if outer is None else outer
-    if not outer > inner:
-        raise CatalogueError(f"{where}: outer diameter must exceed the inner diameter")
+    if not outer - inner >= 2 * MIN_WALL_M:
+        raise CatalogueError(
+            f"{where}: the outer diameter ({outer * 1e3:g} mm) must exceed the inner diameter "
+            f"({inner * 1e3:g} mm) by twice the thinnest wall ({MIN_WALL_M * 1e3:g} mm)"
+        )
     return Tubing(str(entry.get("name", where)), inner, outer, _rating(entry, where))
 
 
 def load_catalogue(path: str | Path | None = None) -> Catalogue:
     """The built-in catalogue, or a user's file with the same layout (errors name entry and key)."""
     if path is None:
-        text = resources.files("efam_mujoco.size").joinpath("catalogue.json").read_text()
+        data = resources.files("efam_mujoco.size").joinpath("catalogue.json").read_bytes()
         label = "built-in catalogue"
     else:
         p = Path(path)
         if not p.is_file():
             raise CatalogueError(f"catalogue file '{path}' does not exist")
-        text, label = p.read_text(), str(p)
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise CatalogueError(f"{label}: not valid JSON ({err})") from None
+        label = str(p)
+        try:
+            if p.stat().st_size > MAX_FILE_BYTES:  # a catalogue is a few kB; never read a huge file
+                raise CatalogueError(
+                    f"{label}: {p.stat().st_size} bytes is not a catalogue (at most {MAX_FILE_BYTES})"
+                )
+            data = p.read_bytes()
+        except OSError as err:
+            raise CatalogueError(f"{label}: cannot read ({err.strerror})") from None
+    try:  # the muscle files' reader: UTF-8, strict JSON, errors with line and column
+        doc = parse_json_text(data, label)
+    except MuscleFileError as err:
+        raise CatalogueError(str(err)) from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise CatalogueError(f"{label}: key 'format' must be '{FORMAT}'")
     for key in ("sleeves", "tubings", "latex", "rules"):
         if key not in doc:
             raise CatalogueError(f"{label}: missing key '{key}'")
-    if not doc["sleeves"] or not doc["tubings"]:
-        raise CatalogueError(f"{label}: 'sleeves' and 'tubings' must not be empty")
-    sleeves = tuple(_sleeve(e, f"{label}: sleeves[{i}]") for i, e in enumerate(doc["sleeves"]))
-    tubings = tuple(_tubing(e, f"{label}: tubings[{i}]") for i, e in enumerate(doc["tubings"]))
+    for key in ("latex", "rules"):
+        if not isinstance(doc[key], dict):
+            raise CatalogueError(f"{label}: '{key}' must be a JSON object")
+    sleeves = tuple(
+        _sleeve(e, _where(label, "sleeves", i, e)) for i, e in enumerate(_entries(doc, "sleeves", label))
+    )
+    tubings = tuple(
+        _tubing(e, _where(label, "tubings", i, e)) for i, e in enumerate(_entries(doc, "tubings", label))
+    )
     lx, where = doc["latex"], f"{label}: latex"
     latex = Latex(
         _number(lx, "elongation_at_break", where),
-        _number(lx, "density_kg_per_m3", where),
+        _number(lx, "density_kg_per_m3", where, "density"),
         _number(lx, "strain_safety_factor", where),
     )
     r, where = doc["rules"], f"{label}: rules"
-    try:
-        max_pressure = read_quantity(r, "max_pressure", "pressure", where)
-    except UnitError as err:
-        raise CatalogueError(str(err)) from None
     rules = Rules(
-        length_growth=_number(r, "length_growth", where, positive=False),
-        length_growth_spread=_number(r, "length_growth_spread", where, positive=False),
-        diameter_growth=_number(r, "diameter_growth", where, positive=False),
+        length_growth=_number(r, "length_growth", where),
+        length_growth_spread=_number(r, "length_growth_spread", where),
+        diameter_growth=_number(r, "diameter_growth", where),
         fitting_core_per_bladder_inner_diameter=_number(r, "fitting_core_per_bladder_inner_diameter", where),
         clamp_gap_per_wall=_number(r, "clamp_gap_per_wall", where),
         clamp_length_per_bladder_outer_diameter=_number(r, "clamp_length_per_bladder_outer_diameter", where),
         swage_wall_per_bladder_outer_diameter=_number(r, "swage_wall_per_bladder_outer_diameter", where),
-        thread_thickness_m=_length(r, "thread_thickness", where),
-        aluminium_density_kg_m3=_number(r, "aluminium_density_kg_per_m3", where),
-        cut_resolution_m=_length(r, "cut_resolution", where),
+        thread_thickness_m=_length(r, "thread_thickness", where, "thread_thickness"),
+        aluminium_density_kg_m3=_number(r, "aluminium_density_kg_per_m3", where, "density"),
+        cut_resolution_m=_length(r, "cut_resolution", where, "cut_resolution"),
         max_gather_ratio=_number(r, "max_gather_ratio", where),
         min_aspect_ratio=_number(r, "min_aspect_ratio", where),
         euler_length_factor=_number(r, "euler_length_factor", where),
-        max_pressure_Pa=max_pressure,
+        max_pressure_Pa=_pressure(r, "max_pressure", where),
     )
     return Catalogue(sleeves, tubings, latex, rules, dict(doc.get("sources", {})), label)

@@ -98,7 +98,7 @@ def register_cli(subparsers) -> None:
         "--json", metavar="FILE", default=None, help="write the full result as JSON (default: none)"
     )
     p.add_argument("--figure", metavar="FILE", default=None,
-                   help="write the force-stroke envelope figure (PNG) (default: none)")  # fmt: skip
+                   help="write the force-stroke envelope figure (.png, .pdf, .svg, ...) (default: none)")  # fmt: skip
     p.set_defaults(run=run, file_inputs=("stress_from", "catalogue"), file_outputs=("json", "figure"))
 
 

@@ -114,6 +114,7 @@ def envelope_figure(result: SizingResult, path, top: int = 3):
     import matplotlib.pyplot as plt
 
     from .. import rig
+    from ..files import save_figure
 
     r = result.request
     P = r.pressure_Pa
@@ -175,6 +176,6 @@ def envelope_figure(result: SizingResult, path, top: int = 3):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)  # a unique temporary, then a rename; the format from the suffix
     plt.close(fig)
     return path

@@ -13,20 +13,33 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_json_atomic
+from ..cli import bounded_int
+from ..files import check_figure_path, save_figure, write_json_atomic
 
 #: tasks the model-based controller acts on (those with a tip target)
 CONTROLLED_TASKS = ("reach", "reach_payload", "track")
+#: Episode i is seeded with seed + i, which numpy and dm_control take in 0 .. 2**32 - 1.
+MAX_SEED = 2**32 - 1
+#: Episodes per policy at most: about a second each, so hours of work; a score needs hundreds.
+MAX_EPISODES = 10_000
 
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--list", action="store_true", help="list the domains and tasks")
     parser.add_argument("--domain", default="bundle", help="bundle or arm (default bundle)")
     parser.add_argument("--task", default="reach", help="task name (default reach)")
-    parser.add_argument("--episodes", type=int, default=10, help="seeded episodes per policy (default 10)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
     parser.add_argument(
-        "--strip", type=Path, help="write an image strip of the controller's first episode (PNG)"
+        "--episodes", type=bounded_int(1, MAX_EPISODES), default=10,
+        help=f"seeded episodes per policy, 1 .. {MAX_EPISODES} (default 10)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--seed", type=bounded_int(0, MAX_SEED, "numpy's seed range"), default=0,
+        help=f"seed of the first episode, 0 .. {MAX_SEED}; episode i uses seed + i (default 0)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--strip",
+        type=Path,
+        help="write an image strip of the controller's first episode (.png, .pdf, .svg, ...)",
     )
     parser.add_argument("--json", type=Path, help="write the per-episode results as JSON")
 
@@ -79,8 +92,7 @@ def write_strip(domain: str, task: str, seed: int, path: Path, frames: int = 6) 
         fontsize=10,
     )
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)  # a unique temporary, then a rename; the format from the suffix
     plt.close(fig)
     return path
 
@@ -97,7 +109,16 @@ def _run(args) -> int:
         raise ValueError(f"--domain/--task: no task {args.domain}-{args.task}; see efam suite --list")
     if args.episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.seed + args.episodes - 1 > MAX_SEED:  # the last episode's seed, before any episode runs
+        raise ValueError(
+            f"--seed {args.seed} with --episodes {args.episodes}: the last episode's seed "
+            f"{args.seed + args.episodes - 1} is above {MAX_SEED} (numpy's seed range)"
+        )
     policies = ["model", "random"] if args.task in CONTROLLED_TASKS else ["random"]
+    if args.strip:  # before the episodes, not after them (also when run as a script)
+        if "model" not in policies:
+            raise ValueError(f"--strip: the controller acts on {', '.join(CONTROLLED_TASKS)} only")
+        check_figure_path("--strip", args.strip)
     report = {"domain": args.domain, "task": args.task, "seed": args.seed}
     for name in policies:
         results = controllers.evaluate(args.domain, args.task, name, args.episodes, args.seed)
@@ -113,9 +134,7 @@ def _run(args) -> int:
         )
     if args.json:
         write_json_atomic(args.json, report)
-    if args.strip:
-        if "model" not in policies:
-            raise ValueError(f"--strip: the controller acts on {', '.join(CONTROLLED_TASKS)} only")
+    if args.strip:  # checked above, before the episodes
         print(f"wrote {write_strip(args.domain, args.task, args.seed, args.strip)}")
     return 0
 

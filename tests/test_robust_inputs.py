@@ -1,0 +1,227 @@
+"""Inputs that read as valid but cannot be built or recorded, found by an adversarial review:
+a muscle longer than its sleeve's threads or its bladder, clamps longer than the bladder, a dead
+band above the rated pressure, a stress law other than the default that overflows, a catalogue
+with a fibre fraction of 5 or in another encoding, a figure in a format no backend writes, a
+negative seed, and a time column in ms headed ``time_s``. Each is refused through the command
+line, naming the file, key, unit or flag, before any work and with no file written."""
+
+from __future__ import annotations
+
+import json
+import re
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _robust import run_bad, run_cli
+
+from efam_mujoco import musclefile, rig
+from efam_mujoco.calibrate.synth import synthesize
+from efam_mujoco.files import FIGURE_OUTPUTS, OutputError, check_figure_path
+from efam_mujoco.musclefile import load_muscle
+from efam_mujoco.recordings import DEFAULT_RATED_PRESSURE_PA, Recording, check_plausibility, write_csv
+from efam_mujoco.size import CatalogueError, load_catalogue
+
+CATALOGUE = resources.files("efam_mujoco.size").joinpath("catalogue.json")
+
+
+def _fam1() -> dict:
+    return json.loads(resources.files("efam_mujoco.presets").joinpath("fam1.json").read_text())
+
+
+def _muscle_file(folder: Path, edit) -> Path:
+    doc = _fam1()
+    edit(doc)
+    path = folder / "muscle.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+# ------------------------------------------------------------- 1. geometry that cannot be built
+@pytest.mark.parametrize(
+    "edit, expect",
+    [
+        # 100 cm of muscle from a sleeve whose threads are 50.8 / sin 45 = 71.8 cm long
+        (lambda d: d["geometry"].update(rest_length_m=1.0), [r"'rest_length_m' = 1\.0", r"braid threads", r"71\.84 cm"]),
+        # 60 cm: shorter than the threads, but 3.7 x the 16.4 cm working bladder (it turned contractile)
+        (lambda d: d["geometry"].update(rest_length_m=0.6), [r"'rest_length_m' = 0\.6", r"3\.66 x the working bladder"]),
+        (lambda d: d["geometry"].update(rest_length_cm=60.0) or d["geometry"].pop("rest_length_m"),
+         [r"'rest_length_cm' = 60\.0", r"working bladder length 16\.41 cm"]),
+        # two 10 cm clamping channels on a 17.8 cm bladder (Eq. 7 alone let it through)
+        (lambda d: d["geometry"].update(clamp_length_m=0.1), [r"'clamp_length_m' = 0\.1", r"17\.78 cm", r"swaging"]),
+    ],
+    ids=["rest-longer-than-threads", "rest-far-from-bladder", "rest-in-cm", "clamps-longer-than-bladder"],
+)  # fmt: skip
+def test_muscle_geometry_that_cannot_be_built_is_refused(tmp_path, capsys, edit, expect):
+    path = _muscle_file(tmp_path, edit)
+    run_bad(["muscle", path.name], tmp_path, capsys, r"muscle\.json: geometry", *expect)
+
+
+def test_muscle_deadband_at_or_above_the_rated_pressure_is_refused(tmp_path, capsys):
+    path = _muscle_file(tmp_path, lambda d: d.update(deadband_kPa=9999))
+    run_bad(["muscle", path.name], tmp_path, capsys, r"'deadband_kPa' = 9999", r"1000 kPa", r"deadband_Pa")
+    path = _muscle_file(
+        tmp_path, lambda d: d.update(deadband_MPa=1.0, deadband_kPa=None) or d.pop("deadband_kPa")
+    )
+    run_bad(["muscle", path.name], tmp_path, capsys, r"'deadband_MPa' = 1\.0", r"never inflate")
+
+
+def test_the_deadband_bound_is_the_rigs_and_the_rated_pressure():
+    assert musclefile.MAX_DEADBAND_PA == rig.RigOptions().max_pressure_Pa == DEFAULT_RATED_PRESSURE_PA
+
+
+def test_presets_and_a_high_but_possible_deadband_still_load(tmp_path, capsys):
+    for name in ("FAM1", "FAM2"):
+        for law in musclefile.available_laws(name):
+            load_muscle(name, law)
+    path = _muscle_file(tmp_path, lambda d: d.update(deadband_kPa=500.0))
+    assert load_muscle(path).deadband_Pa == 500e3
+
+
+# ------------------------------------------------------------- 2. every law, not only the default
+def test_a_non_default_law_that_overflows_is_refused_naming_it(tmp_path, capsys):
+    def edit(doc):
+        doc["stress"]["default"] = "linear"
+        doc["stress"]["laws"]["exponential_decay"]["E4"] = 5000.0  # exp overflows in compression
+
+    path = _muscle_file(tmp_path, edit)
+    run_bad(
+        ["muscle", path.name],
+        tmp_path,
+        capsys,
+        r"stress law 'exponential_decay'",
+        r"not finite",
+        r"'E4': 5000",
+    )
+    with pytest.raises(musclefile.MuscleFileError, match="stress law 'exponential_decay'"):
+        load_muscle(path, "linear")
+
+
+# ------------------------------------------------------------- 3-4. the size catalogue
+SIZE = ["size", "--stroke", "0.5", "--force", "10", "--pressure", "500", "--top", "1"]
+
+
+def _catalogue(folder: Path, edit) -> Path:
+    doc = json.loads(CATALOGUE.read_text())
+    edit(doc)
+    path = folder / "catalogue.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_catalogue_fibre_fraction_above_one_is_refused_through_the_cli(tmp_path, capsys):
+    path = _catalogue(tmp_path, lambda d: d["sleeves"][1].update(fibre_fraction=5))
+    run_bad([*SIZE, "--catalogue", path.name], tmp_path, capsys,
+            r"catalogue\.json: sleeves\[1\] \('PET expandable 1/4 in'\)", r"'fibre_fraction' = 5", r"\(0, 1\]",
+            r"not a percentage")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "edit, expect",
+    [
+        (lambda d: d["tubings"][0].update(wall_in=3.0), r"tubings\[0\].*'wall_in' = 3\.0 \(76\.2 mm\).*50\] mm"),
+        (lambda d: d["sleeves"][0].update(thickness_mm=51), r"sleeves\[0\].*'thickness_mm' = 51 \(51 mm\)"),
+        (lambda d: d["sleeves"][0].update(max_diameter_in=300), r"'max_diameter_in' = 300 \(7620 mm\)"),
+        (lambda d: d["sleeves"][0].update(density_kg_per_m3=1.38), r"'density_kg_per_m3' = 1\.38.*kg/m\^3"),
+        (lambda d: d["sleeves"][-1].update(pressure_rating_kPa=690e6), r"'pressure_rating_kPa'.*kPa"),
+        (lambda d: d["latex"].update(elongation_at_break=750), r"latex: key 'elongation_at_break' = 750"),
+        (lambda d: d["latex"].update(strain_safety_factor=0.5), r"'strain_safety_factor' = 0\.5"),
+        (lambda d: d["rules"].update(euler_length_factor=7), r"rules: key 'euler_length_factor' = 7.*\[0\.5, 2\]"),
+        (lambda d: d["rules"].update(clamp_gap_per_wall=3), r"'clamp_gap_per_wall' = 3"),
+        (lambda d: d["rules"].update(diameter_growth=-0.5), r"'diameter_growth' = -0\.5"),
+        (lambda d: d["rules"].update(length_growth=4.0), r"'length_growth' = 4\.0"),
+        (lambda d: d["rules"].update(max_gather_ratio=0.5), r"'max_gather_ratio' = 0\.5"),
+        (lambda d: d["rules"].update(max_pressure_kPa=1e6), r"'max_pressure_kPa' = 1000000\.0 \(1e\+06 kPa\)"),
+        (lambda d: d["rules"].update(thread_thickness_mm=15), r"'thread_thickness_mm' = 15 \(15 mm\)"),
+    ],
+    ids=["wall", "thickness", "diameter", "density", "rating", "elongation", "safety", "euler", "clamp-gap",
+         "diameter-growth", "length-growth", "gather", "max-pressure", "thread"],
+)  # fmt: skip
+def test_every_catalogue_quantity_has_a_physical_range(tmp_path, edit, expect):
+    with pytest.raises(CatalogueError, match=expect):
+        load_catalogue(_catalogue(tmp_path, edit))
+
+
+def test_the_built_in_catalogue_is_inside_every_range():
+    catalogue = load_catalogue()
+    assert len(catalogue.sleeves) > 5 and len(catalogue.tubings) > 5
+
+
+def test_a_binary_catalogue_names_line_and_column_not_the_codec(tmp_path, capsys):
+    data = CATALOGUE.read_bytes()
+    i = data.index(b"PET monofilament")
+    (tmp_path / "catalogue.json").write_bytes(data[:i] + b"\xff\xfe" + data[i:])
+    err = run_bad([*SIZE, "--catalogue", "catalogue.json"], tmp_path, capsys,
+                  r"catalogue\.json: line \d+, column \d+: byte 0xff is not UTF-8")  # fmt: skip
+    assert "codec" not in err
+
+
+# ------------------------------------------------------------- 5. figure formats, up front
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        ([*SIZE, "--figure", "x.txt"], "--figure"),
+        (["suite", "--episodes", "1", "--strip", "x.json"], "--strip"),
+    ],
+)
+def test_a_figure_format_no_backend_writes_is_refused_before_the_work(tmp_path, capsys, argv, flag):
+    err = run_bad(
+        argv, tmp_path, capsys, rf"{flag} x\.\w+: '\.\w+' is not a figure format", r"\.png", r"\.pdf"
+    )
+    assert "designs checked" not in err and "success" not in err
+    code, out, _ = run_cli(argv, tmp_path, capsys)
+    assert out == ""  # nothing ran: no sizing summary, no episode scores
+
+
+def test_figure_paths_are_checked_by_the_shared_rule():
+    assert set(FIGURE_OUTPUTS) >= {"--figure", "--strip"}
+    with pytest.raises(OutputError, match=r"--figure a\.docx: '\.docx' is not a figure format"):
+        check_figure_path("--figure", "a.docx")
+    for good in ("a.png", "a.PDF", "a.svg"):
+        try:
+            check_figure_path("--figure", good)
+        except OutputError as err:  # only when matplotlib is missing, and then it says so
+            assert "needs matplotlib" in str(err)
+
+
+# ------------------------------------------------------------- 6. integer flags
+@pytest.mark.parametrize(
+    "argv, expect",
+    [
+        (["--seed", "-1"], r"argument --seed: must be a whole number in 0 \.\. 4294967295"),
+        (["--seed", str(2**32)], r"argument --seed: .*got 4294967296"),
+        (["--seed", "1e3"], r"argument --seed: takes a whole number in plain digits, got '1e3'"),
+        (["--episodes", "0"], r"argument --episodes: must be a whole number in 1 \.\. 10000"),
+        (["--episodes", "-3"], r"argument --episodes: .*got -3"),
+        (["--episodes", "1000000000"], r"argument --episodes: .*got 1000000000"),
+        (["--seed", str(2**32 - 1), "--episodes", "2"], r"--seed 4294967295 with --episodes 2: the last episode's seed"),
+    ],
+)  # fmt: skip
+def test_suite_seed_and_episodes_are_bounded_naming_the_flag(tmp_path, capsys, argv, expect):
+    err = run_bad(["suite", *argv], tmp_path, capsys, expect)
+    assert "Seed must be between" not in err  # numpy's own message
+
+
+# ------------------------------------------------------------- 7. a time column in ms headed time_s
+def test_ms_written_as_time_s_is_refused_by_the_stroke_speed(tmp_path, capsys):
+    muscle = load_muscle("FAM1")
+    recs = synthesize(muscle, pressures_Pa=(206.8e3, 413.7e3), rate_Hz=20.0)
+    assert not check_plausibility(recs, muscle)  # the paper's 5.1 mm/s strokes every 50 ms
+    for i, r in enumerate(recs):  # the same numbers, read as seconds: 50 s steps, 5.1 um/s
+        slow = Recording(r.time_s * 1e3, r.length_m, r.pressure_Pa, r.force_N, dict(r.meta))
+        assert 1.0 <= float(np.median(np.diff(slow.time_s))) <= 60.0  # the interval check passes
+        write_csv(tmp_path / f"ms{i}.csv", slow)
+    err = run_bad(["calibrate", "--muscle", "FAM1", "--stress", "linear", "ms0.csv", "ms1.csv"], tmp_path, capsys,
+                  r"\[time-unit\] ms0\.csv: column 'time_s'", r"never faster than 5\.1 um/s", r"'time_ms'")  # fmt: skip
+    assert len(re.findall(r"\[time-unit\]", err)) == 2
+
+
+def test_held_length_and_slow_sampled_recordings_still_pass_the_stroke_speed():
+    muscle = load_muscle("FAM1")
+    n = 2000
+    t = np.arange(n) * 30.0  # a sample every 30 s for 16 h: a creep test at a held length
+    held = Recording(t, np.full(n, muscle.rest_length_m), np.full(n, 300e3), np.full(n, 50.0) + np.sin(t))
+    assert not [f for f in check_plausibility([held], muscle) if f.check == "time-unit"]
+    recs = synthesize(muscle, pressures_Pa=(206.8e3,), rate_Hz=1000.0, speed_m_per_s=0.5e-3)
+    assert not [f for f in check_plausibility(recs, muscle) if f.check == "time-unit"]  # 0.5 mm/s at 1 kHz
