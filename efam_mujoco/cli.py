@@ -61,6 +61,15 @@ class _HelpFormatter(argparse.HelpFormatter):
         return text
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse's parser with the house's one-line error: the problem and where the help is,
+    not the usage block first (``efam muscle: error: argument --pressures-kPa: ...``)."""
+
+    def error(self, message):
+        """Print ``<prog>: error: <message> (<prog> --help)`` on standard error and exit 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 class _ExactSubparsers:
     """Wraps argparse's subparsers action: every subparser gets ``allow_abbrev=False`` and the
     help formatter above, so no feature module has to remember them."""
@@ -93,7 +102,7 @@ def _version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``efam`` parser with every command of :data:`COMMAND_MODULES` (exact flags)."""
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="efam",
         description="Extensile fluidic artificial muscles in MuJoCo (Garbulinski et al. 2021 model).",
         allow_abbrev=False,
@@ -106,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="append MuJoCo's warnings to FILE (default: print them on standard error; "
         "MUJOCO_LOG.TXT is never written)",
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_OneLineParser)
     exact = _ExactSubparsers(sub)
     for name in COMMAND_MODULES:
         importlib.import_module(name).register_cli(exact)

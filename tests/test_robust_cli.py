@@ -755,3 +755,11 @@ def test_number_flags_read_plain_decimals_only(tmp_path, capsys, value):
     if value not in ("nan", "inf"):
         code, _, err = run_cli(["suite", f"--seed={value}"], tmp_path, capsys)
         assert code == 2 and "argument --seed" in err
+
+
+@pytest.mark.parametrize(
+    "argv", [["muscle", "FAM1", "--pressures-kPa", "abc"], ["bogus"], [], ["suite", "--seed"]]
+)
+def test_usage_errors_are_one_line_with_where_the_help_is(tmp_path, capsys, argv):
+    code, _, err = run_cli(argv, tmp_path, capsys)
+    assert code == 2 and err.count("\n") == 1 and "usage:" not in err and "--help)" in err

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..files import save_figure
 from ..stress import LAWS
 from .core import Calibration
 from .fit import LawFit
@@ -125,7 +126,7 @@ def figure_blocked(cal: Calibration, path) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -163,7 +164,7 @@ def figure_strokes(cal: Calibration, path, laws=None) -> None:
     for ax in list(axes.flat)[len(laws) :]:
         ax.axis("off")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -185,7 +186,7 @@ def figure_stress(cal: Calibration, path) -> None:
         ax.grid(alpha=0.3)
     a.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
