@@ -42,6 +42,21 @@ class OutputError(ValueError):
 
 
 # ---------------------------------------------------------------------------- atomic files
+def output_target(path: str | os.PathLike, label: str = "output") -> Path:
+    """Where an output file is really written: a link's target (the link is kept, the file it
+    points to replaced), refused when that is not a regular file or a new name: renaming over a
+    device, a pipe or a socket would replace it with a regular file (``--json /dev/null`` as
+    root replaced the system's /dev/null)."""
+    path = Path(path)
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    if target.exists() and not target.is_file() and not target.is_dir():
+        raise OutputError(
+            f"{label} {path} is not a regular file (a device, a pipe or a socket): outputs are written to a "
+            "temporary and renamed over, which would replace it; give a file name"
+        )
+    return target
+
+
 def _temporary_beside(path: Path, suffix: str = "") -> tuple[int, Path]:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -73,7 +88,7 @@ def _renamed_over(tmp: Path, path: Path):
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to a unique temporary beside ``path`` and rename it over ``path``."""
-    path = Path(path)
+    path = output_target(path)
     if path.is_dir():
         raise OutputError(f"{path}: is a folder, not a file")
     fd, tmp = _temporary_beside(path)
@@ -164,7 +179,7 @@ def save_figure(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
     """``fig.savefig`` into a unique temporary beside ``path``, then rename: a failed or killed
     write never leaves a truncated image. The format follows ``path``'s suffix (PNG without one);
     a suffix matplotlib cannot write is an :class:`OutputError` before anything is written."""
-    path = Path(path)
+    path = output_target(path, "figure")
     if "format" not in savefig_kwargs:
         check_figure_path("figure", path)
     fmt = savefig_kwargs.pop("format", None) or (path.suffix[1:].lower() or "png")
@@ -246,11 +261,26 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
         for other_label, other in outs[:i]:
             if _same_file(out, other):
                 raise OutputError(f"{other_label} and {label} are the same file ({out}); give two paths")
+            for file_label, file, folder_label, folder in (
+                (label, out, other_label, other),
+                (other_label, other, label, out),
+            ):
+                if (
+                    folder_label in ("--out", "--report")
+                    and file_label not in FOLDER_OUTPUTS
+                    and _inside(file, folder)
+                ):
+                    raise OutputError(
+                        f"{file_label} {file} is inside the {folder_label} folder {folder}, which is written as a "
+                        "whole (one would overwrite or remove the other); give a path outside it"
+                    )
         if label not in FOLDER_OUTPUTS and out.is_dir():
             raise OutputError(
                 f"{label} {out}: is a folder, not a file; give a file name (e.g. "
                 f"{out / ('figure.png' if label in ('--figure', '--strip') else 'result.json')})"
             )
+        if label not in FOLDER_OUTPUTS:
+            output_target(out, label)  # before the work: not a device, a pipe or a socket
         if label in FIGURE_OUTPUTS:
             check_figure_path(label, out)
         _check_writable_place(label, out)

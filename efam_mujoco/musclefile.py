@@ -166,6 +166,29 @@ def parse_json_text(data: bytes, label: str) -> object:
         raise MuscleFileError(f"{label}: not valid JSON: nested too deeply") from None
 
 
+def read_small_file(path: str | Path, what: str, max_bytes: int = MAX_FILE_BYTES) -> tuple[bytes, str]:
+    """The bytes of a small input file (``what``: "a muscle file", "an arm spec file") and its label,
+    refused, naming it, when it is a folder, not a regular file (a pipe would block, /dev/zero
+    never end) or larger than ``max_bytes`` (not read into memory)."""
+    path = Path(path)
+    label = str(path)
+    try:
+        if path.is_dir():
+            raise MuscleFileError(f"{label}: is a folder, not {what}")
+        if not path.exists():
+            raise MuscleFileError(
+                f"{label}: no such file" + (" (a broken link)" if path.is_symlink() else "")
+            )
+        if not path.is_file():
+            raise MuscleFileError(f"{label}: not a regular file (a pipe or a device?), not {what}")
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise MuscleFileError(f"{label}: {size} bytes is not {what} (at most {max_bytes} bytes)")
+        return path.read_bytes(), label
+    except OSError as err:  # a link loop, no permission, an I/O error
+        raise MuscleFileError(f"{label}: cannot read ({err.strerror or err})") from None
+
+
 def read_document(source: str | Path) -> tuple[dict, str]:
     """The parsed JSON of a preset name or a file path, and a label for messages."""
     if not isinstance(source, (str, os.PathLike)):
@@ -181,24 +204,11 @@ def read_document(source: str | Path) -> tuple[dict, str]:
         label = f"preset {key.upper()}"
     else:
         path = Path(source)
-        if not path.exists():
+        if not path.exists() and not path.is_symlink():
             raise MuscleFileError(
                 f"'{source}' is neither a preset ({', '.join(p.upper() for p in PRESETS)}) nor a file"
             )
-        if path.is_dir():
-            raise MuscleFileError(f"{path}: is a folder, not a muscle file")
-        if not path.is_file():  # a FIFO or a device would block or never end
-            raise MuscleFileError(f"{path}: not a regular file (a pipe or a device?)")
-        label = str(path)
-        try:
-            size = path.stat().st_size
-            if size > MAX_FILE_BYTES:
-                raise MuscleFileError(
-                    f"{label}: {size} bytes is not a muscle file (at most {MAX_FILE_BYTES} bytes)"
-                )
-            data = path.read_bytes()
-        except OSError as err:
-            raise MuscleFileError(f"{label}: cannot read ({err.strerror})") from None
+        data, label = read_small_file(path, "a muscle file")
     doc = parse_json_text(data, label)
     if not isinstance(doc, dict):
         raise MuscleFileError(f"{label}: expected a JSON object at the top level")

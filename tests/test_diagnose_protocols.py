@@ -1023,3 +1023,13 @@ def test_a_ramp_at_another_length_makes_a_hidden_tapered_end_show():
     assert shows_joined and left_joined > 1.5 * left
     again = V.identifiable(case, rec, nominal, more=(V._noise_free(case, rec),))
     assert again == (False, pytest.approx(left, rel=1e-3))
+
+
+def test_a_nanosecond_time_base_does_not_ask_for_a_huge_smoothing_window():
+    """Past --allow time-unit, a 1 ns time base asked segment.smooth for a 5e8-sample kernel:
+    one convolution that ran for over ten minutes, deaf to SIGTERM. The window is at most the
+    recording."""
+    from efam_mujoco.diagnose import segment
+
+    t = np.arange(3000) * 1e-9
+    assert segment._window(t) <= len(t)

@@ -193,3 +193,68 @@ def test_continuum_budget_is_an_error_not_a_hang():
     with pytest.raises(continuum.ContinuumBudgetError, match="did not converge within 500 constitutive"):
         continuum.solve_arm_spec(heavy, [[200e3] * 3], max_evaluations=500)
     assert time.monotonic() - start < 5
+
+
+def test_diagnose_arm_report_into_a_users_folder_is_refused_before_the_work(lab, tmp_path, capsys):
+    """diagnose-arm wrote report.txt over the user's own report.txt in a folder that was no efam
+    report; it now builds its report beside and swaps it in, as efam diagnose does."""
+    folder, model, spec, rec = lab
+    recording = tmp_path / "rec.csv"
+    write_csv(recording, rec)
+    mine = tmp_path / "userdir"
+    mine.mkdir()
+    (mine / "report.txt").write_text("my precious report")
+    code, _, err = run_cli(["diagnose-arm", str(recording), "--model", str(model), "--report", str(mine)],
+                           tmp_path, capsys)  # fmt: skip
+    assert code == 2 and "is not an efam report folder" in err
+    assert (mine / "report.txt").read_text() == "my precious report"
+
+
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda p: p.symlink_to("/dev/zero"), "not a regular file"),  # was read until memory ran out
+        (lambda p: __import__("os").mkfifo(p), "not a regular file"),  # was a hang
+        (lambda p: p.write_bytes(b"{" + b" " * 5_000_000), "bytes is not an arm spec file"),
+        (
+            lambda p: p.write_text('{"format": "efam_mujoco.arm_spec/1", "gravity": "no", "sections": []}'),
+            "key 'gravity' must be a JSON boolean",
+        ),  # 'no' was taken as true
+        (lambda p: p.write_text('{"format": "x", "payload_kg": 0, "payload_kg": 5}'), "appears twice"),
+    ],
+)
+def test_arm_spec_files_are_read_as_strictly_as_muscle_files(tmp_path, make, words):
+    from efam_mujoco.armdiag.specfile import ArmModelError, load_spec
+
+    path = tmp_path / "arm.json"
+    make(path)
+    with pytest.raises(ArmModelError, match=words):
+        load_spec(path)
+
+
+def test_arm_spec_files_beyond_the_arm_commands_size_are_refused(tmp_path):
+    """An arm JSON with 200 disks a section hung diagnose-arm, deaf to SIGTERM."""
+    from efam_mujoco.armdiag.specfile import ArmModelError, load_spec
+
+    path = save_spec(tmp_path / "arm.json", arm.ArmSpec(sections=(arm.paper_section(disks=2),)))
+    doc = json.loads(path.read_text())
+    doc["sections"][0]["disks"] = 200
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArmModelError, match="800 degrees of freedom"):
+        load_spec(path)
+
+
+def test_settle_refuses_pressures_mujoco_would_zero_or_clamp():
+    model = arm.build_model(arm.ArmSpec(sections=(arm.paper_section(disks=2),), timestep_s=DT))
+    data = mujoco_data(model)
+    for bad in ([np.nan, 1e5, 1e5], [1e9, 1e5, 1e5], [-1e6, 1e5, 1e5]):
+        with pytest.raises(ValueError, match="pressures_Pa\\[0\\]"):
+            arm.settle(model, data, bad)  # NaN was 'settled', the others clamped
+    with pytest.raises(ValueError, match="one pressure per actuator"):
+        arm.settle(model, data, [1e5, 1e5])
+
+
+def mujoco_data(model):
+    import mujoco
+
+    return mujoco.MjData(model)

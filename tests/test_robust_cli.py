@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import stat
 import subprocess
 import sys
 import sysconfig
@@ -763,3 +764,22 @@ def test_number_flags_read_plain_decimals_only(tmp_path, capsys, value):
 def test_usage_errors_are_one_line_with_where_the_help_is(tmp_path, capsys, argv):
     code, _, err = run_cli(argv, tmp_path, capsys)
     assert code == 2 and err.count("\n") == 1 and "usage:" not in err and "--help)" in err
+
+
+def test_outputs_never_replace_a_device_a_pipe_or_a_link(tmp_path, capsys):
+    """Renaming a temporary over the path turned /dev/null (as root), a FIFO, or a link into a
+    regular file: a device or pipe is refused; a link is written through, and kept."""
+    os.mkfifo(tmp_path / "pipe.json")
+    code, _, err = run_cli(["muscle", "FAM1", "--json", "pipe.json"], tmp_path, capsys)
+    assert code == 2 and "is not a regular file (a device, a pipe or a socket)" in err
+    assert stat.S_ISFIFO(os.lstat(tmp_path / "pipe.json").st_mode)
+    (tmp_path / "real.json").write_text("{}")
+    (tmp_path / "link.json").symlink_to(tmp_path / "real.json")
+    assert run_cli(["muscle", "FAM1", "--json", "link.json"], tmp_path, capsys)[0] == 0
+    assert (tmp_path / "link.json").is_symlink() and '"FAM1"' in (tmp_path / "real.json").read_text()
+
+
+def test_a_file_output_inside_a_report_folder_is_refused(tmp_path):
+    """--json rep/report.txt with --report rep: one silently replaced the other."""
+    with pytest.raises(OutputError, match="is inside the --report folder"):
+        check_outputs({"--json": tmp_path / "rep" / "report.txt", "--report": tmp_path / "rep"}, {})

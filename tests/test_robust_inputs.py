@@ -225,3 +225,37 @@ def test_held_length_and_slow_sampled_recordings_still_pass_the_stroke_speed():
     assert not [f for f in check_plausibility([held], muscle) if f.check == "time-unit"]
     recs = synthesize(muscle, pressures_Pa=(206.8e3,), rate_Hz=1000.0, speed_m_per_s=0.5e-3)
     assert not [f for f in check_plausibility(recs, muscle) if f.check == "time-unit"]  # 0.5 mm/s at 1 kHz
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (lambda d: d["sleeves"][0].update(fibre_fracton=0.9), "unknown key 'fibre_fracton'"),  # was ignored
+        (lambda d: d["rules"].update(extra_key_mm=1.0), "rules: unknown key 'extra_key_mm'"),
+        (lambda d: d.update(surprise=1), "unknown key 'surprise'"),
+        (lambda d: d["tubings"].append(dict(d["tubings"][0])), "is given to 2 entries"),
+        (lambda d: d["sleeves"][0].pop("fibre_fraction"), "missing key 'fibre_fraction'"),
+    ],
+)
+def test_catalogue_keys_are_known_names_unique_and_present(tmp_path, edit, words):
+    import json as _json
+    from importlib import resources
+
+    from efam_mujoco.size.catalogue import CatalogueError, load_catalogue
+
+    doc = _json.loads(resources.files("efam_mujoco.size").joinpath("catalogue.json").read_text())
+    edit(doc)
+    path = tmp_path / "cat.json"
+    path.write_text(_json.dumps(doc))
+    with pytest.raises(CatalogueError, match=words):
+        load_catalogue(path)
+
+
+def test_a_catalogue_that_is_a_pipe_is_not_called_missing(tmp_path):
+    import os
+
+    from efam_mujoco.size.catalogue import CatalogueError, load_catalogue
+
+    os.mkfifo(tmp_path / "cat.json")
+    with pytest.raises(CatalogueError, match="not a regular file"):
+        load_catalogue(tmp_path / "cat.json")

@@ -32,3 +32,25 @@ def test_registered_ids_make_environments():
     observation, _ = env.reset(seed=0)
     assert env.observation_space.contains(observation)
     env.close()
+
+
+def test_adapter_refuses_a_step_after_the_end_and_says_when_it_clips():
+    """Stepped after truncation, dm_control reset itself and returned reward None (a TypeError);
+    a NaN action raised dm_control's PhysicsError; actions outside [0, 1] were clipped silently."""
+    import pytest
+
+    env = SuiteEnv("bundle", "reach", task_kwargs={"time_limit": 0.3})
+    env.reset(seed=1)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([np.nan, 0.5, 0.5]))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(7))
+    with pytest.warns(RuntimeWarning, match="outside \\[0, 1\\]: clipped"):
+        env.step(np.array([5.0, 0.5, 0.5]))
+    truncated = False
+    while not truncated:
+        *_, truncated, _ = env.step(env.action_space.sample())
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(env.action_space.sample())
+    env.reset()
+    env.step(env.action_space.sample())  # a new episode steps again

@@ -31,6 +31,7 @@ import numpy as np
 from .. import plugin
 from ..files import write_text_atomic
 from ..muscle import Muscle
+from ..units import check_pressure_Pa
 from .masses import FITTING_LENGTH_M, FITTING_RADIUS_M
 from .spec import ORIENTATIONS, ArmSpec, SectionSpec, arm_1x3, arm_3x3
 from .timestep import ROUND_TIMESTEPS_S, apply_timestep, default_integrator, force_jacobian, generalized_force
@@ -482,8 +483,26 @@ def settle(
 ) -> bool:
     """Hold the pressures and step until the arm is still (or ``t_max_s`` of simulated time, or
     ``max_steps`` steps: then a warning says how far it got); returns whether it settled. Raises
-    if the state stops being finite."""
-    data.ctrl[:] = np.ravel(pressures_Pa)
+    if the state stops being finite, and for pressures that are not one finite value per
+    actuator inside its control range (MuJoCo would zero a NaN and clamp the rest silently)."""
+    pressures = np.asarray(pressures_Pa, dtype=float)
+    if pressures.ndim > 1 and pressures.size == model.nu:
+        pressures = pressures.ravel()  # a nested list per section is the same pressures
+    if pressures.shape != (model.nu,):
+        raise ValueError(
+            f"arm.settle: pressures_Pa needs one pressure per actuator ({model.nu}), got shape {pressures.shape}"
+        )
+    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    limited = model.actuator_ctrllimited.astype(bool)
+    bad = ~np.isfinite(pressures) | (limited & ((pressures < low) | (pressures > high)))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"arm.settle: pressures_Pa[{i}] = {pressures[i]:g} Pa is not a finite pressure inside the actuator's "
+            f"control range {low[i]:g} .. {high[i]:g} Pa (MuJoCo would zero or clamp it)"
+        )
+    check_pressure_Pa(pressures, "arm.settle: pressures_Pa")
+    data.ctrl[:] = pressures
     steps = 0
     while data.time < t_max_s:
         if steps >= max_steps:

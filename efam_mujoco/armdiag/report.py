@@ -7,7 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import save_figure, write_json_atomic, write_text_atomic
+from ..files import (
+    check_replaceable_folder,
+    replace_folder,
+    save_figure,
+    write_json_atomic,
+    write_text_atomic,
+)
 from .diagnosis import ArmDiagnosis, diagnose_arm
 from .recording import read_csv
 from .replay import Replayer
@@ -149,6 +155,8 @@ def register_cli(subparsers) -> None:
 
 def run(args) -> int:
     """Run ``efam diagnose-arm`` with parsed arguments; returns the exit status."""
+    if args.report:  # replaced as a whole: refused now, not after the diagnosis, if not ours
+        check_replaceable_folder(args.report, "--report")
     spec = load_arm_model(args.model)
     muscles = [a.name for a in spec.actuators]
     rec = read_csv(args.recording, muscles)
@@ -159,12 +167,12 @@ def run(args) -> int:
     print(report)
     if args.json:
         write_json(args.json, d)
-    if args.report:
-        args.report.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(args.report / "report.txt", report + "\n")
-        write_json(args.report / "diagnosis.json", d)
-        write_model(args.report / "arm_identified.xml", spec, d)
-        figures(d, args.report)
+    if args.report:  # built beside, swapped in whole (files.replace_folder), as efam diagnose's
+        with replace_folder(args.report, "--report") as staging:
+            write_text_atomic(staging / "report.txt", report + "\n")
+            write_json(staging / "diagnosis.json", d)
+            write_model(staging / "arm_identified.xml", spec, d)
+            figures(d, staging)
         print(f"wrote {args.report}/report.txt, diagnosis.json, arm_identified.xml, armdiag_tip.png")
     return 0
 

@@ -20,6 +20,7 @@ limit, with a warning when within less than its margin).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import fields
 from pathlib import Path
 
@@ -53,6 +54,36 @@ def spec_to_dict(arm: ArmSpec) -> dict:
     return doc
 
 
+def _json_types(values: dict, cls, where: str) -> None:
+    """Each value of ``values`` has the JSON type its field of ``cls`` declares: booleans are
+    JSON booleans only (``"false"`` is a true string), numbers are numbers (not booleans),
+    angles a list of numbers, names strings; an error names the key."""
+    declared = {f.name: str(f.type) for f in fields(cls)}
+    for key, value in values.items():
+        kind = declared.get(key, "")
+        optional = kind.endswith("| None")
+        if value is None and optional:
+            continue
+        base = kind.split("|")[0].strip()
+        if base == "bool":
+            ok = isinstance(value, bool)
+        elif base in ("float", "int"):
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            ok = ok and (base == "float" or float(value).is_integer())
+        elif base == "str":
+            ok = isinstance(value, str)
+        elif base.startswith("tuple[float"):
+            ok = isinstance(value, list) and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
+            )
+        else:
+            continue
+        if not ok:
+            want = {"bool": "a JSON boolean (true or false)", "int": "a whole number", "float": "a number",
+                    "str": "a string"}.get(base, "a list of numbers")  # fmt: skip
+            raise ArmModelError(f"{where}: key '{key}' must be {want}, got {json.dumps(value)}")
+
+
 def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
     """The :class:`ArmSpec` of a dict written by :func:`spec_to_dict` (clear errors naming the key)."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
@@ -61,6 +92,7 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
     unknown = sorted(set(doc) - known - {"format"})
     if unknown:
         raise ArmModelError(f"{label}: unknown key(s) {', '.join(unknown)}")
+    _json_types({k: doc[k] for k in known - {"sections"} if k in doc}, ArmSpec, label)
     sections = doc.get("sections")
     if not isinstance(sections, list) or not sections:
         raise ArmModelError(f"{label}: key 'sections' must be a non-empty list")
@@ -81,6 +113,7 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
             except (MuscleFileError, ValueError, TypeError) as err:
                 raise ArmModelError(f"{where}.muscles[{i}]: {err}") from None
         kw = {k: s[k] for k in _SECTION_KEYS if k in s}
+        _json_types(kw, SectionSpec, where)
         if kw.get("angles_deg") is not None:
             kw["angles_deg"] = tuple(kw["angles_deg"])
         try:
@@ -89,9 +122,17 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
             raise ArmModelError(f"{where}: {err}") from None
     kw = {k: doc[k] for k in known - {"sections"} if k in doc}
     try:
-        return ArmSpec(sections=tuple(built), **kw)
+        spec = ArmSpec(sections=tuple(built), **kw)
     except (ValueError, TypeError) as err:
         raise ArmModelError(f"{label}: {err}") from None
+    from ..arm.cli import MAX_DEGREES_OF_FREEDOM, degrees_of_freedom
+
+    if degrees_of_freedom(spec) > MAX_DEGREES_OF_FREEDOM:  # as efam arm: a build and replays of hours
+        raise ArmModelError(
+            f"{label}: {degrees_of_freedom(spec)} degrees of freedom (4 per spacer disk), beyond the "
+            f"{MAX_DEGREES_OF_FREEDOM} a diagnosis replays in reasonable time; use fewer 'disks'"
+        )
+    return spec
 
 
 def save_spec(path: str | Path, arm: ArmSpec) -> Path:
@@ -101,13 +142,15 @@ def save_spec(path: str | Path, arm: ArmSpec) -> Path:
 
 def load_spec(path: str | Path) -> ArmSpec:
     """Read an arm spec file (JSON)."""
-    label = str(path)
-    try:
-        doc = json.loads(Path(path).read_text())
-    except OSError as err:
-        raise ArmModelError(f"{label}: cannot open ({err.strerror})") from None
-    except json.JSONDecodeError as err:
-        raise ArmModelError(f"{label}: line {err.lineno}, column {err.colno}: not JSON ({err.msg})") from None
+    from ..musclefile import MuscleFileError, parse_json_text, read_small_file
+
+    try:  # strict JSON as the muscle files (no NaN, no key twice, a BOM allowed), bounded in size
+        data, label = read_small_file(path, "an arm spec file")
+        doc = parse_json_text(data, label)
+    except MuscleFileError as err:
+        raise ArmModelError(str(err)) from None
+    if not isinstance(doc, dict):
+        raise ArmModelError(f"{label}: expected a JSON object at the top level")
     return spec_from_dict(doc, label)
 
 

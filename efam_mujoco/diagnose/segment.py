@@ -119,8 +119,10 @@ def smooth(u: np.ndarray, window: int) -> np.ndarray:
 
 
 def _window(t: np.ndarray) -> int:
+    """Samples in ``SMOOTH_S``, at most the recording's own length: a time base in ns (allowed
+    past the time-unit check) asked for a 5e8-sample kernel, one uninterruptible convolution."""
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    return max(3, int(round(SMOOTH_S / max(dt, 1e-9))))
+    return max(3, min(int(round(SMOOTH_S / max(dt, 1e-9))), len(t)))
 
 
 def _moving(t, u, window):

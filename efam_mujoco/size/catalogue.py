@@ -13,7 +13,13 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..musclefile import MAX_FILE_BYTES, MAX_REST_OVER_BLADDER, MIN_WALL_M, MuscleFileError, parse_json_text
+from ..musclefile import (
+    MAX_REST_OVER_BLADDER,
+    MIN_WALL_M,
+    MuscleFileError,
+    parse_json_text,
+    read_small_file,
+)
 from ..units import UnitError, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.catalogue/1"
@@ -171,6 +177,8 @@ def _in_range(value: float, block: dict, base: str, where: str, kind: str, quant
 
 
 def _number(block: dict, key: str, where: str, kind: str | None = None) -> float:
+    if key not in block:
+        raise CatalogueError(f"{where}: missing key '{key}'")
     value = block.get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise CatalogueError(f"{where}: key '{key}' must be a finite number, got {value!r}")
@@ -219,7 +227,34 @@ def _where(label: str, key: str, i: int, entry: dict) -> str:
     return f"{label}: {key}[{i}]" + (f" ('{name}')" if isinstance(name, str) else "")
 
 
+def _known_keys(block: dict, plain: tuple, bases: tuple, where: str) -> None:
+    """Every key of ``block`` is one of ``plain`` or ``<base>_<unit>`` for one of ``bases``: a
+    misspelled key (``fibre_fracton``) is an error naming it, never ignored (as in muscle files)."""
+    for key in block:
+        if key in plain or key in bases:  # a base without its unit: read_quantity says "has no unit"
+            continue
+        base, unit = split_unit(key)
+        if unit and base in bases:
+            continue
+        known = ", ".join([*plain, *(f"{b}_<unit>" for b in bases)])
+        raise CatalogueError(f"{where}: unknown key '{key}' (known: {known})")
+
+
+_SLEEVE_KEYS = (("name", "material", "note", "fibre_fraction", "density_kg_per_m3"),
+                ("reference_diameter", "min_diameter", "max_diameter", "thickness", "pressure_rating"))  # fmt: skip
+_TUBING_KEYS = (("name", "note"), ("inner_diameter", "wall", "outer_diameter", "pressure_rating"))
+_LATEX_KEYS = (("elongation_at_break", "density_kg_per_m3", "strain_safety_factor"), ())
+_RULES_KEYS = (
+    ("length_growth", "length_growth_spread", "diameter_growth", "fitting_core_per_bladder_inner_diameter",
+     "clamp_gap_per_wall", "clamp_length_per_bladder_outer_diameter", "swage_wall_per_bladder_outer_diameter",
+     "aluminium_density_kg_per_m3", "max_gather_ratio", "min_aspect_ratio", "euler_length_factor"),
+    ("thread_thickness", "cut_resolution", "max_pressure"),
+)  # fmt: skip
+_TOP_KEYS = ("format", "description", "sources", "sleeves", "tubings", "latex", "rules")
+
+
 def _sleeve(entry: dict, where: str) -> Sleeve:
+    _known_keys(entry, *_SLEEVE_KEYS, where)
     sleeve = Sleeve(
         name=str(entry.get("name", where)),
         material=str(entry.get("material", "")),
@@ -237,6 +272,7 @@ def _sleeve(entry: dict, where: str) -> Sleeve:
 
 
 def _tubing(entry: dict, where: str) -> Tubing:
+    _known_keys(entry, *_TUBING_KEYS, where)
     inner = _length(entry, "inner_diameter", where, "diameter")
     wall = _length(entry, "wall", where, "wall", default=None)
     outer = _length(entry, "outer_diameter", where, "diameter", default=None)
@@ -257,18 +293,12 @@ def load_catalogue(path: str | Path | None = None) -> Catalogue:
         data = resources.files("efam_mujoco.size").joinpath("catalogue.json").read_bytes()
         label = "built-in catalogue"
     else:
-        p = Path(path)
-        if not p.is_file():
+        if not Path(path).exists() and not Path(path).is_symlink():
             raise CatalogueError(f"catalogue file '{path}' does not exist")
-        label = str(p)
-        try:
-            if p.stat().st_size > MAX_FILE_BYTES:  # a catalogue is a few kB; never read a huge file
-                raise CatalogueError(
-                    f"{label}: {p.stat().st_size} bytes is not a catalogue (at most {MAX_FILE_BYTES})"
-                )
-            data = p.read_bytes()
-        except OSError as err:
-            raise CatalogueError(f"{label}: cannot read ({err.strerror})") from None
+        try:  # a folder, a pipe, /dev/zero or a huge file is refused, never read (musclefile's rule)
+            data, label = read_small_file(path, "a catalogue file")
+        except MuscleFileError as err:
+            raise CatalogueError(str(err)) from None
     try:  # the muscle files' reader: UTF-8, strict JSON, errors with line and column
         doc = parse_json_text(data, label)
     except MuscleFileError as err:
@@ -278,15 +308,25 @@ def load_catalogue(path: str | Path | None = None) -> Catalogue:
     for key in ("sleeves", "tubings", "latex", "rules"):
         if key not in doc:
             raise CatalogueError(f"{label}: missing key '{key}'")
+    _known_keys(doc, _TOP_KEYS, (), label)
     for key in ("latex", "rules"):
         if not isinstance(doc[key], dict):
             raise CatalogueError(f"{label}: '{key}' must be a JSON object")
+    _known_keys(doc["latex"], *_LATEX_KEYS, f"{label}: latex")
+    _known_keys(doc["rules"], *_RULES_KEYS, f"{label}: rules")
     sleeves = tuple(
         _sleeve(e, _where(label, "sleeves", i, e)) for i, e in enumerate(_entries(doc, "sleeves", label))
     )
     tubings = tuple(
         _tubing(e, _where(label, "tubings", i, e)) for i, e in enumerate(_entries(doc, "tubings", label))
     )
+    for key, entries in (("sleeves", sleeves), ("tubings", tubings)):
+        names = [e.name for e in entries]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:  # a design names its parts: two of one name could not be told apart
+            raise CatalogueError(
+                f"{label}: {key}: the name '{twice[0]}' is given to {names.count(twice[0])} entries"
+            )
     lx, where = doc["latex"], f"{label}: latex"
     latex = Latex(
         _number(lx, "elongation_at_break", where),

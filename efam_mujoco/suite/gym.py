@@ -58,6 +58,8 @@ class SuiteEnv(gymnasium.Env):
             dtype=np.float32,
         )
         self.metadata = {**self.metadata, "render_fps": int(round(1 / self.env.control_timestep()))}
+        self._ended = False  # the last step ended the episode: the next needs a reset first
+        self._told_clipped = False
 
     def _flat(self, observation) -> np.ndarray:
         return np.concatenate([np.ravel(observation[k]) for k in self.observation_keys]).astype(np.float32)
@@ -68,12 +70,36 @@ class SuiteEnv(gymnasium.Env):
         if seed is not None:  # a seeded task: its targets and starts follow the seed
             self.env = load(self.domain, self.task, task_kwargs={**self.task_kwargs, "random": int(seed)})
         time_step = self.env.reset()
+        self._ended = False
         return self._flat(time_step.observation), {}
 
     def step(self, action):
         """Apply ``action`` (pressure fractions in [0, 1]) for one control step; returns
-        (observation, reward, terminated, truncated, info) with ``info["success"]``."""
-        time_step = self.env.step(np.asarray(action, dtype=np.float64))
+        (observation, reward, terminated, truncated, info) with ``info["success"]``. Actions
+        outside [0, 1] are clipped (a warning says so, once per environment); a non-finite
+        action, a wrong shape, or a step after the episode ended (call ``reset``) is an error."""
+        import warnings
+
+        if self._ended:
+            raise RuntimeError(
+                "the episode has ended (truncated at its time limit): call reset() before step()"
+            )
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {action.shape}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"action must be finite pressure fractions in [0, 1], got {action.tolist()}")
+        outside = (action < self.action_space.low) | (action > self.action_space.high)
+        if outside.any() and not self._told_clipped:
+            self._told_clipped = True
+            warnings.warn(
+                f"action {action.tolist()} is outside [0, 1]: clipped to the muscles' pressure range (said once "
+                "per environment)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        time_step = self.env.step(np.clip(action, self.action_space.low, self.action_space.high))
+        self._ended = bool(time_step.last())
         info = {"success": bool(self.env.task.success(self.env.physics))}
         return self._flat(time_step.observation), float(time_step.reward), False, bool(time_step.last()), info
 
