@@ -67,11 +67,30 @@ class Recording:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        """Arrays of one length, each one-dimensional and finite, time strictly increasing: what
+        the CSV reader guarantees, checked for recordings built in Python too (a NaN there ended
+        in 'SVD did not converge' deep inside a fit)."""
         for name in ("time_s", "length_m", "pressure_Pa", "force_N"):
-            setattr(self, name, np.asarray(getattr(self, name), dtype=float))
+            try:
+                value = np.asarray(getattr(self, name), dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f"Recording: {name} must be an array of numbers") from None
+            if value.ndim != 1:
+                raise ValueError(f"Recording: {name} must be one-dimensional, got shape {value.shape}")
+            if not np.all(np.isfinite(value)):
+                k = int(np.argmin(np.isfinite(value)))
+                raise ValueError(f"Recording: {name}[{k}] = {value[k]} is not a finite number")
+            setattr(self, name, value)
         n = {len(self.time_s), len(self.length_m), len(self.pressure_Pa), len(self.force_N)}
         if len(n) != 1:
             raise ValueError("recording arrays must all have the same length")
+        steps = np.diff(self.time_s)
+        if steps.size and not np.all(steps > 0):
+            k = int(np.argmin(steps > 0)) + 1
+            raise ValueError(
+                f"Recording: time_s must increase from sample to sample ({self.time_s[k]:g} s at sample {k} "
+                f"after {self.time_s[k - 1]:g} s)"
+            )
 
     def __len__(self) -> int:
         return len(self.time_s)

@@ -122,3 +122,32 @@ def test_write_read_round_trip_and_input_protection(tmp_path):
 def test_missing_file_names_it(tmp_path):
     with pytest.raises(RecordingError, match="nope.csv: cannot open"):
         read_csv(tmp_path / "nope.csv")
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"force_N": [0.0, float("nan"), 1.0]}, r"force_N\[1\] = nan is not a finite number"),
+        ({"length_m": [[0.17, 0.17, 0.17]]}, "length_m must be one-dimensional"),
+        ({"time_s": [0.0, 0.2, 0.1]}, "time_s must increase"),
+        ({"pressure_Pa": ["a", "b", "c"]}, "pressure_Pa must be an array of numbers"),
+    ],
+)
+def test_a_recording_built_in_python_is_checked_as_the_reader_checks_a_file(change, words):
+    """Built in Python, a NaN or unsorted time reached calibrate() and diagnose() and ended in
+    'SVD did not converge' or an IndexError deep inside a fit."""
+    from efam_mujoco.recordings import Recording
+
+    arrays = dict(time_s=[0.0, 0.1, 0.2], length_m=[0.17] * 3, pressure_Pa=[1e5] * 3, force_N=[0.0, 1.0, 2.0])
+    with pytest.raises(ValueError, match=words):
+        Recording(**{**arrays, **change})
+
+
+def test_calibrate_and_diagnose_refuse_what_is_not_a_recording():
+    from efam_mujoco import load_muscle
+    from efam_mujoco.calibrate import calibrate
+    from efam_mujoco.diagnose import diagnose
+
+    for run in (calibrate, diagnose):
+        with pytest.raises(TypeError, match="must be Recording objects"):
+            run(["a.csv"], load_muscle("FAM1"))  # a file name's 5 characters were counted as samples

@@ -136,7 +136,12 @@ def calibrate(
     """
     t0 = time.perf_counter()
     names = resolve_laws(laws)
-    recordings = list(recordings)
+    recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
+    for r in recordings:
+        if not isinstance(r, Recording):  # a file name's length was counted as its samples
+            raise TypeError(
+                f"calibrate: recordings must be Recording objects (read_csv), got {type(r).__name__}"
+            )
     total = sum(len(r) for r in recordings)
     if total < MIN_SAMPLES:
         # three rows gave a muscle file without a word

@@ -189,6 +189,10 @@ def diagnose(
     if not recordings:
         raise ValueError("diagnose: no recordings")
     for r in recordings:
+        if not isinstance(r, Recording):  # a file name is read with recordings.read_csv first
+            raise TypeError(
+                f"diagnose: recordings must be Recording objects (read_csv), got {type(r).__name__}"
+            )
         if len(r) < MIN_SAMPLES:
             raise ValueError(f"{r.meta.get('source', 'recording')}: too few samples to diagnose ({len(r)})")
     for name in candidates:
