@@ -562,6 +562,9 @@ def check_plausibility(
         interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
         if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
             fits = _unit_that_fits(interval, 0.01, tcol, TIME_UNITS)
+            if fits:  # a unit is offered only when under it the interval is one a recorder makes
+                under = interval / TIME_UNITS[split_unit(tcol)[1]] * TIME_UNITS[split_unit(fits)[1]]
+                fits = fits if MIN_INTERVAL_S <= under <= MAX_INTERVAL_S else ""
             hint = f"; the numbers fit '{fits}'" if fits else ""
             findings.append(Finding("time-unit", (
                 f"{src}: column '{tcol}': the median sample interval is {interval:.4g} s; a bench recorder "

@@ -258,3 +258,16 @@ def mujoco_data(model):
     import mujoco
 
     return mujoco.MjData(model)
+
+
+def test_marker_noise_is_estimated_with_every_other_sample_missing():
+    """With no three marked samples in a row the noise floor was NaN ("marker noise nan mm");
+    the marked samples in a row give it (white noise of 0.5 mm on a slow circle)."""
+    from efam_mujoco.armdiag.locate import noise_floor
+
+    rng = np.random.default_rng(5)
+    t = np.arange(600) * 0.02
+    tip = np.c_[0.1 * np.cos(0.3 * t), 0.1 * np.sin(0.3 * t), 0.17 + 0 * t] + rng.normal(0, 5e-4, (600, 3))
+    full = noise_floor(t, tip)
+    tip[1::2] = np.nan
+    assert full == pytest.approx(5e-4, rel=0.15) and noise_floor(t, tip) == pytest.approx(5e-4, rel=0.15)

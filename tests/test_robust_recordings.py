@@ -465,3 +465,15 @@ def test_one_long_file_does_not_turn_short_files_strokes_into_ramps():
     assert len(samples.levels_Pa) == 5
     assert np.allclose(np.sort(samples.levels_Pa), [p.pressure_Pa[0] for p in recs], rtol=1e-9)
     assert samples.isobaric
+
+
+def test_no_unit_is_offered_under_which_the_time_base_is_still_impossible():
+    """A 1 ns interval was told "the numbers fit 'time_min'" (6e-8 s a sample: still no recorder)."""
+    from efam_mujoco.musclefile import load_muscle
+    from efam_mujoco.recordings import Recording, check_plausibility
+
+    n = 400
+    rec = Recording(np.arange(n) * 1e-9, 0.17018 + 0.02 * np.sin(np.arange(n) / 30), np.full(n, 2e5),
+                    np.linspace(10, 40, n), {"source": "ns.csv", "columns": ["time_s", "length_m", "pressure_Pa", "force_N"]})  # fmt: skip
+    found = [f for f in check_plausibility([rec], load_muscle("FAM1")) if f.check == "time-unit"]
+    assert found and "column 'time_s'" in found[0].message and "fit" not in found[0].message
