@@ -42,13 +42,20 @@ class OutputError(ValueError):
 
 
 # ---------------------------------------------------------------------------- atomic files
+def _link_target(path: str | os.PathLike) -> Path:
+    """``path``, or what it links to: an output (file or report folder) goes where the link
+    points, the link kept."""
+    path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
 def output_target(path: str | os.PathLike, label: str = "output") -> Path:
     """Where an output file is really written: a link's target (the link is kept, the file it
     points to replaced), refused when that is not a regular file or a new name: renaming over a
     device, a pipe or a socket would replace it with a regular file (``--json /dev/null`` as
     root replaced the system's /dev/null)."""
     path = Path(path)
-    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    target = _link_target(path)
     if target.exists() and not target.is_file() and not target.is_dir():
         raise OutputError(
             f"{label} {path} is not a regular file (a device, a pipe or a socket): outputs are written to a "
@@ -361,18 +368,12 @@ def _not_the_reports(folder: Path) -> str:
     return ""
 
 
-def _real_folder(path: str | os.PathLike) -> Path:
-    """``path``, or the folder it links to: a report goes where the link points, the link kept."""
-    path = Path(path)
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
-
-
 def check_replaceable_folder(path: str | os.PathLike, label: str = "output folder") -> Path:
     """Refuse a folder that exists and is neither empty nor an untouched previous efam report
     (its marker lists every file in it, unchanged: it would be replaced as a whole), and a path
     that is a file. Returns the folder to write (a link's target)."""
     given = Path(path)
-    path = _real_folder(given)
+    path = _link_target(given)
     if given.is_symlink() and not path.exists():
         raise OutputError(f"{label} {given} is a link to {path}, which does not exist")
     if path.exists() and not path.is_dir():

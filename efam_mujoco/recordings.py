@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from .files import write_text_atomic
-from .units import LENGTH, PRESSURE, QUANTITIES, UnitError, factor, split_unit
+from .units import LENGTH, PRESSURE, QUANTITIES, TIME, UnitError, factor, split_unit, unit_that_fits
 
 
 @dataclass
@@ -444,7 +444,7 @@ LENGTH_TOLERANCE = 0.02
 REST_LENGTH_REACH = 0.5
 #: Median sample intervals a bench recorder makes (1 MHz .. one sample a minute).
 MIN_INTERVAL_S, MAX_INTERVAL_S = 1e-6, 60.0
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
+TIME_UNITS = TIME
 #: A recording whose length sweeps at least this share of the resting length (it was stroked)
 #: must somewhere move faster than MIN_STROKE_SPEED_M_PER_S between two samples. Bench strokes
 #: run at mm/s (the paper 5.1 mm/s, Sec. 3; standard rubber tests 500 mm/min); 10 um/s is a
@@ -493,16 +493,6 @@ def _column(recording: Recording, base: str) -> str:
         if split_unit(name)[0] in base.split("|"):
             return name
     return base.split("|")[0]
-
-
-def _unit_that_fits(value_si: float, target_si: float, column: str, table: dict) -> str:
-    """The unit of ``table`` under which the column's numbers would be nearest ``target_si``."""
-    base, unit = split_unit(column)
-    if unit not in table or value_si == 0:
-        return ""
-    raw = value_si / table[unit]
-    best = min(table, key=lambda u: abs(math.log(abs(raw * table[u]) / target_si)))
-    return f"{base}_{best}" if best != unit else ""
 
 
 def _slow_strokes(rec: Recording, rest: float, tcol: str) -> str:
@@ -561,10 +551,8 @@ def check_plausibility(
         tcol = _column(rec, "time")
         interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
         if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
-            fits = _unit_that_fits(interval, 0.01, tcol, TIME_UNITS)
-            if fits:  # a unit is offered only when under it the interval is one a recorder makes
-                under = interval / TIME_UNITS[split_unit(tcol)[1]] * TIME_UNITS[split_unit(fits)[1]]
-                fits = fits if MIN_INTERVAL_S <= under <= MAX_INTERVAL_S else ""
+            # a unit is offered only when under it the interval is one a recorder makes
+            fits = unit_that_fits(interval, 0.01, tcol, TIME_UNITS, within=(MIN_INTERVAL_S, MAX_INTERVAL_S))
             hint = f"; the numbers fit '{fits}'" if fits else ""
             findings.append(Finding("time-unit", (
                 f"{src}: column '{tcol}': the median sample interval is {interval:.4g} s; a bench recorder "
@@ -578,9 +566,9 @@ def check_plausibility(
         if not 0.1 < median_L / rest < 10:
             if split_unit(lcol)[0] == "displacement":
                 d = float(np.median(np.abs(L - rest))) or float(np.max(np.abs(L - rest)))
-                fits = _unit_that_fits(d, 0.2 * rest, lcol, LENGTH)
+                fits = unit_that_fits(d, 0.2 * rest, lcol, LENGTH)
             else:
-                fits = _unit_that_fits(median_L, rest, lcol, LENGTH)
+                fits = unit_that_fits(median_L, rest, lcol, LENGTH)
             hint = f"; the numbers fit '{fits}'" if fits else ""
             findings.append(Finding("length-unit", (
                 f"{src}: column '{lcol}': median length {median_L:.4g} m is {median_L / rest:.3g} x the "
@@ -605,14 +593,14 @@ def check_plausibility(
         top = float(np.max(P))
         if top > rated_pressure_Pa:
             i = int(np.argmax(P > rated_pressure_Pa))
-            fits = _unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE)
+            fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE)
             hint = f"; the numbers fit '{fits}'" if fits else ""
             findings.append(Finding("pressure-range", (
                 f"{src}: {_line(rec, i)}, column '{pcol}': pressure {P[i] / 1e3:.4g} kPa is above the rated "
                 f"pressure {rated_pressure_Pa / 1e3:g} kPa{hint}"
             )))  # fmt: skip
         elif top <= muscle.deadband_Pa:
-            fits = _unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE) if top > 0 else ""
+            fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE) if top > 0 else ""
             hint = f"; the numbers fit '{fits}'" if fits else ""
             findings.append(Finding("pressure-deadband", (
                 f"{src}: column '{pcol}': the pressure never exceeds the muscle's dead band "
@@ -642,7 +630,7 @@ def check_plausibility(
         big = np.abs(F) > limit
         if big.any():
             i = int(np.argmax(big))
-            fits = _unit_that_fits(float(np.max(np.abs(F))), max(capacity, 1.0), fcol, FORCE_UNITS)
+            fits = unit_that_fits(float(np.max(np.abs(F))), max(capacity, 1.0), fcol, FORCE_UNITS)
             hint = f"; the numbers fit '{fits}'" if fits else ""
             findings.append(Finding("force-range", (
                 f"{src}: {_line(rec, i)}, column '{fcol}': force {F[i]:.4g} N is beyond what the muscle can "
@@ -655,7 +643,7 @@ def check_plausibility(
             or len(np.unique(F[: min(len(F), 100000)])) <= 2
             or (expected > 5.0 and spread < 0.02 * expected)
         ):
-            fits = _unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
+            fits = unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
             hint = f" (or the numbers fit '{fits}')" if fits and len(np.unique(F[:1000])) > 2 else ""
             findings.append(Finding("force-dead", (
                 f"{src}: column '{fcol}': the force hardly changes (range {spread:.4g} N over {len(F)} samples) "

@@ -50,6 +50,22 @@ def factor(unit: str, quantity: str, where: str = "") -> float:
     return table[unit]
 
 
+def unit_that_fits(value_si: float, target_si: float, column: str, table: dict, within=None) -> str:
+    """The header (``'time_ms'``) under which ``column``'s numbers, read as ``value_si`` with the
+    header's own unit, would be nearest ``target_si`` among the units of ``table``; with
+    ``within`` (low, high in SI) only a unit under which the value falls inside it. Empty when
+    that is the header's own unit, its unit is not in ``table``, or the value is 0 or not finite.
+    The unit hint of every reader (a value 1000 x off: mm written as m)."""
+    base, unit = split_unit(column)
+    if unit not in table or not value_si or not math.isfinite(value_si):
+        return ""
+    raw = abs(value_si) / table[unit]
+    best = min(table, key=lambda u: abs(math.log(raw * table[u] / target_si)))
+    if best == unit or (within is not None and not within[0] <= raw * table[best] <= within[1]):
+        return ""
+    return f"{base}_{best}"
+
+
 REQUIRED = object()
 
 

@@ -457,6 +457,16 @@ def tip_in_base(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     return base_frame_position(model, data, data.site("tip").xpos)
 
 
+def bend_in_base(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """The arm's total bend (rad): the angle between the base's axis and the tip's (the
+    ``tip_quat`` sensor)."""
+    base = data.xmat[model.body("base").id].reshape(3, 3)
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, data.sensor("tip_quat").data)
+    axis = base.T @ rotation.reshape(3, 3)[:, 2]
+    return float(math.acos(np.clip(axis[2], -1.0, 1.0)))
+
+
 def gravity_in_base(arm: ArmSpec) -> np.ndarray:
     """Gravity (m/s^2) expressed in the base frame."""
     if not arm.gravity:

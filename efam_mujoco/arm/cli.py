@@ -16,7 +16,15 @@ import numpy as np
 from ..files import write_json_atomic, write_text_atomic
 from ..musclefile import load_muscle
 from ..progress import progress
-from .builder import MODELS_DIR, arm_xml, build_model, static_equilibrium, tip_in_base, write_models
+from .builder import (
+    MODELS_DIR,
+    arm_xml,
+    bend_in_base,
+    build_model,
+    static_equilibrium,
+    tip_in_base,
+    write_models,
+)
 from .continuum import ContinuumError, solve_arm_spec
 from .spec import (
     DEFAULT_DISKS,
@@ -52,15 +60,6 @@ def degrees_of_freedom(arm: ArmSpec) -> int:
     return 4 * sum(section.disks for section in arm.sections)
 
 
-def _bend_deg(model, data) -> float:
-    """Angle (deg) between the base's axis and the tip's: the MuJoCo arm's total bend."""
-    base = data.xmat[model.body("base").id].reshape(3, 3)
-    rotation = np.zeros(9)
-    mujoco.mju_quat2Mat(rotation, data.sensor("tip_quat").data)
-    axis = base.T @ rotation.reshape(3, 3)[:, 2]
-    return float(np.degrees(math.acos(np.clip(axis[2], -1.0, 1.0))))
-
-
 def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force_N=(0.0, 0.0, 0.0)) -> dict:
     """Tip position at rest under constant pressures, in the base frame: the MuJoCo arm
     (:func:`~efam_mujoco.arm.builder.static_equilibrium`) and the continuum reference with the
@@ -87,7 +86,7 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
     result = {
         "settled": bool(settled),
         "tip_mujoco_m": simulated.tolist(),
-        "bend_mujoco_deg": _bend_deg(model, data),
+        "bend_mujoco_deg": math.degrees(bend_in_base(model, data)),
         "timestep": {**asdict(choice), "description": choice.describe()},
     }
     if state is None:

@@ -41,7 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from ..files import write_text_atomic
-from ..units import LENGTH, PRESSURE, TIME, UnitError, factor, split_unit
+from ..recordings import MAX_INTERVAL_S, MIN_INTERVAL_S
+from ..units import LENGTH, PRESSURE, TIME, UnitError, factor, split_unit, unit_that_fits
 
 
 class ArmRecordingError(ValueError):
@@ -53,9 +54,6 @@ class ArmRecordingWarning(UserWarning):
     highest pressure, replayed at it); the message names the column and counts the samples."""
 
 
-#: Median sample intervals a recorder makes (1 MHz .. one sample a minute), as the muscle-level
-#: reader (:mod:`efam_mujoco.recordings`) accepts: outside them the time column's unit is wrong.
-MIN_INTERVAL_S, MAX_INTERVAL_S = 1e-6, 60.0
 #: Longest recording read (s): one arm test is seconds to minutes (the benchmark's are 15 s, the
 #: diagnosis searches the first 10 s of training time), and four hours is more than a lab session
 #: of one arm with one tip marker. A test of 15 s or more written in ms under a 's' header reads
@@ -246,15 +244,9 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
 
 
 def unit_hint(column: str, value_si: float, target_si: float, table: dict) -> str:
-    """``"; the numbers fit 'time_ms'"``: the unit of ``table`` under which the column's numbers
-    (``value_si`` read with the header's unit) would be nearest ``target_si``; empty when that is
-    the header's own unit or the header's unit is not in ``table``."""
-    base, unit = split_unit(column)
-    if unit not in table or not value_si or not math.isfinite(value_si):
-        return ""
-    raw = abs(value_si) / table[unit]
-    best = min(table, key=lambda u: abs(math.log(raw * table[u] / target_si)))
-    return f"; the numbers fit '{base}_{best}'" if best != unit else ""
+    """``"; the numbers fit 'time_ms'"`` (:func:`efam_mujoco.units.unit_that_fits`), or empty."""
+    fits = unit_that_fits(value_si, target_si, column, table)
+    return f"; the numbers fit '{fits}'" if fits else ""
 
 
 def _check_time_base(t: np.ndarray, where: str, column: str) -> None:

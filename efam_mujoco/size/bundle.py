@@ -98,12 +98,7 @@ def _simulate(spec: arm.ArmSpec, pressures) -> tuple[np.ndarray, float, mujoco.M
     model = arm.build_model(spec)
     data = mujoco.MjData(model)
     settled = arm.settle(model, data, pressures, t_max_s=SETTLE_S)
-    tip = arm.tip_in_base(model, data)
-    base = data.xmat[model.body("base").id].reshape(3, 3)
-    rotation = np.zeros(9)
-    mujoco.mju_quat2Mat(rotation, data.sensor("tip_quat").data)
-    axis = base.T @ rotation.reshape(3, 3)[:, 2]
-    return tip, float(math.acos(np.clip(axis[2], -1.0, 1.0))), model, data, bool(settled)
+    return arm.tip_in_base(model, data), arm.bend_in_base(model, data), model, data, bool(settled)
 
 
 def bundle_report(muscle: Muscle, request: Request) -> BundleReport:

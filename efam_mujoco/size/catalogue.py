@@ -186,26 +186,25 @@ def _number(block: dict, key: str, where: str, kind: str | None = None) -> float
     return _in_range(float(value), block, key, where, kind or key, quantity)
 
 
-def _length(block: dict, base: str, where: str, kind: str, default=...):
+def _quantity(block: dict, base: str, where: str, quantity: str, kind: str, default=...):
+    """``<base>_<unit>`` of ``block`` in SI (``quantity``: "length" or "pressure"), inside
+    ``RANGES[kind]``; ``default`` when absent (required when not given)."""
     try:
         if default is ...:
-            value = read_quantity(block, base, "length", where)
+            value = read_quantity(block, base, quantity, where)
         else:
-            value = read_quantity(block, base, "length", where, default=default)
+            value = read_quantity(block, base, quantity, where, default=default)
     except UnitError as err:
         raise CatalogueError(str(err)) from None
-    return None if value is None else _in_range(value, block, base, where, kind, "length")
+    return None if value is None else _in_range(value, block, base, where, kind, quantity)
+
+
+def _length(block: dict, base: str, where: str, kind: str, default=...):
+    return _quantity(block, base, where, "length", kind, default)
 
 
 def _pressure(block: dict, base: str, where: str, default=...):
-    try:
-        if default is ...:
-            value = read_quantity(block, base, "pressure", where)
-        else:
-            value = read_quantity(block, base, "pressure", where, default=default)
-    except UnitError as err:
-        raise CatalogueError(str(err)) from None
-    return None if value is None else _in_range(value, block, base, where, "pressure", "pressure")
+    return _quantity(block, base, where, "pressure", "pressure", default)
 
 
 def _rating(block: dict, where: str):

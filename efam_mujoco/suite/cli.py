@@ -107,8 +107,6 @@ def _run(args) -> int:
         return 0
     if (args.domain, args.task) not in ALL_TASKS:
         raise ValueError(f"--domain/--task: no task {args.domain}-{args.task}; see efam suite --list")
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
     if args.seed + args.episodes - 1 > MAX_SEED:  # the last episode's seed, before any episode runs
         raise ValueError(
             f"--seed {args.seed} with --episodes {args.episodes}: the last episode's seed "

@@ -14,6 +14,8 @@ tasks never terminate); ``info["success"]`` is the task's success test at that s
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 try:
@@ -78,8 +80,6 @@ class SuiteEnv(gymnasium.Env):
         (observation, reward, terminated, truncated, info) with ``info["success"]``. Actions
         outside [0, 1] are clipped (a warning says so, once per environment); a non-finite
         action, a wrong shape, or a step after the episode ended (call ``reset``) is an error."""
-        import warnings
-
         if self._ended:
             raise RuntimeError(
                 "the episode has ended (truncated at its time limit): call reset() before step()"
@@ -101,7 +101,7 @@ class SuiteEnv(gymnasium.Env):
         time_step = self.env.step(np.clip(action, self.action_space.low, self.action_space.high))
         self._ended = bool(time_step.last())
         info = {"success": bool(self.env.task.success(self.env.physics))}
-        return self._flat(time_step.observation), float(time_step.reward), False, bool(time_step.last()), info
+        return self._flat(time_step.observation), float(time_step.reward), False, self._ended, info
 
     def render(self):
         """An RGB frame from the named camera when ``render_mode="rgb_array"``, else None."""
