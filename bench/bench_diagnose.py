@@ -269,25 +269,51 @@ def print_summary(s: dict) -> None:
 
 
 # ------------------------------------------------------------------------- calibration
-def fit_calibration(rows: list[dict]) -> Calibration:
-    """The two logistic maps of ``confidence`` by maximum likelihood on the calibration cases:
-    (a, b, c) from (excess cut, data-driven gain) to 'the best library term is the physics', over
-    the cases whose raw winner is an effect (weighted by its win fraction); (an, bn, cn, dn) from
-    (excess over the noise, data-driven gain, best effect's separation from none / 5) to 'nothing
-    is missing', over those won by none (weighted by none's win fraction)."""
+#: ridge weights tried for the per-term offsets of the physics map (ten-fold cross-validation picks one)
+OFFSET_RIDGES = (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)
+
+
+def _logistic_fit(X: np.ndarray, w0, ridge: float = 0.0, n_free: int | None = None) -> np.ndarray:
+    """Weighted logistic regression by maximum likelihood. ``X`` columns: features..., right
+    (0/1), weight. Every coefficient carries a tiny ridge (1e-3); those past the first ``n_free``
+    (intercept included) carry ``ridge`` (a Gaussian prior of variance 1/(2 ridge))."""
     from scipy.optimize import minimize
 
-    def logistic_fit(X, w0):
-        # X columns: features..., right (0/1), weight
-        def nll(w):
-            z = w[0] + X[:, : len(w) - 1] @ w[1:]
-            p = np.clip(1 / (1 + np.exp(-z)), 1e-9, 1 - 1e-9)
-            right, weight = X[:, -2], X[:, -1]
-            return -np.sum(weight * (right * np.log(p) + (1 - right) * np.log(1 - p))) + 1e-3 * np.sum(w * w)
+    k = X.shape[1] - 2
+    n_free = k + 1 if n_free is None else n_free
 
-        return minimize(nll, np.array(w0), method="Nelder-Mead", options={"maxiter": 8000, "fatol": 1e-10}).x
+    def nll(w):
+        z = w[0] + X[:, :k] @ w[1:]
+        p = np.clip(1 / (1 + np.exp(-z)), 1e-9, 1 - 1e-9)
+        right, weight = X[:, -2], X[:, -1]
+        prior = 1e-3 * np.sum(w * w) + ridge * np.sum(w[n_free:] ** 2)
+        return -np.sum(weight * (right * np.log(p) + (1 - right) * np.log(1 - p))) + prior
 
-    effect_rows, none_rows = [], []
+    return minimize(nll, np.array(w0, float), method="BFGS").x
+
+
+def _heldout_log_loss(X: np.ndarray, w0, ridge: float, n_free: int, folds: int = 10) -> float:
+    """Weighted log-loss of ``_logistic_fit`` on each of ``folds`` folds, fitted on the others
+    (fixed fold draw: every ridge weight is judged on the same folds)."""
+    fold = np.random.default_rng(0).integers(0, folds, len(X))
+    k, loss = X.shape[1] - 2, 0.0
+    for f in range(folds):
+        w = _logistic_fit(X[fold != f], w0, ridge, n_free)
+        T = X[fold == f]
+        p = np.clip(1 / (1 + np.exp(-(w[0] + T[:, :k] @ w[1:]))), 1e-9, 1 - 1e-9)
+        loss -= float(np.sum(T[:, -1] * (T[:, -2] * np.log(p) + (1 - T[:, -2]) * np.log(1 - p))))
+    return loss / float(X[:, -1].sum())
+
+
+def fit_calibration(rows: list[dict]) -> Calibration:
+    """The two logistic maps of ``confidence`` by maximum likelihood on the calibration cases:
+    (a, b, c) from (excess cut, data-driven gain) to 'the best library term is the physics', with
+    an offset of the log-odds per library term (shrunk by a ridge weight that ten-fold
+    cross-validation on these cases picks from ``OFFSET_RIDGES``), over the cases whose raw winner
+    is an effect (weighted by its win fraction); (an, bn, cn, dn) from (excess over the noise,
+    data-driven gain, best effect's separation from none / 5) to 'nothing is missing', over those
+    won by none (weighted by none's win fraction)."""
+    effect_rows, tops, none_rows = [], [], []
     for r in rows:
         raw = insample_supported(r["raw"], r.get("delta_bic"))
         effects = {k: v for k, v in raw.items() if k != "none"}
@@ -297,16 +323,27 @@ def fit_calibration(rows: list[dict]) -> Calibration:
             weight = sum(effects.values())
             if weight > 0:
                 effect_rows.append((*physics_features(r["excess_cut"], r["dd_gain"]), float(right), weight))
+                tops.append(top)
         if raw.get("none", 0) > 0:
             effect_z = best_effect_z((r.get("evidence") or {}).get("block_sse"))
             none_rows.append((*none_features(r["excess"], r["dd_gain_none"], effect_z),
                               float(r["kind"] == "clean" or not r.get("shows", True)), raw["none"]))  # fmt: skip
     print(f"calibration rows: {len(effect_rows)} won by an effect, {len(none_rows)} by none")
-    w = logistic_fit(np.array(effect_rows), [0.0, 3.0, -10.0])
-    wn = logistic_fit(np.array(none_rows), [3.0, 0.0, -10.0, 0.0])
+    names = sorted(set(tops))
+    E = np.array(effect_rows)
+    one_hot = np.array([[float(t == n) for n in names] for t in tops]).reshape(len(tops), len(names))
+    X = np.column_stack([E[:, :2], one_hot, E[:, 2:]])
+    w0 = [0.0, 3.0, -10.0] + [0.0] * len(names)
+    losses = {ridge: _heldout_log_loss(X, w0, ridge, n_free=3) for ridge in OFFSET_RIDGES}
+    ridge = min(losses, key=losses.get)
+    print("held-out log-loss by ridge weight on the per-term offsets: "
+          + ", ".join(f"{k:g}: {v:.4f}" for k, v in losses.items()) + f" (chosen {ridge:g})")  # fmt: skip
+    w = _logistic_fit(X, w0, ridge, n_free=3)
+    wn = _logistic_fit(np.array(none_rows), [3.0, 0.0, -10.0, 0.0])
     return Calibration(concentration=CALIBRATION.concentration, a=float(w[0]), b=float(w[1]), c=float(w[2]),
                        tie_margin=CALIBRATION.tie_margin, an=float(wn[0]), bn=float(wn[1]), cn=float(wn[2]),
-                       dn=float(wn[3]))  # fmt: skip
+                       dn=float(wn[3]), effect_offset={n: float(v) for n, v in zip(names, w[3:])},
+                       offset_ridge=float(ridge))  # fmt: skip
 
 
 def stored_rows(paths: list[str], cases: list[tuple[int, str, str]]) -> list[dict]:

@@ -11,12 +11,14 @@ What every subcommand gets from here, without code of its own:
   is an input (or inside the installed package) is refused, naming both flags;
 * MuJoCo's log routed to ``--mujoco-log FILE`` or standard error, never ``MUJOCO_LOG.TXT``;
 * one error exit: bad input prints ``efam COMMAND: error: ...`` and exits 2, with no traceback;
+  a Python warning prints one line, ``efam COMMAND: warning: ...``;
   a closed pipe (``efam muscle FAM1 | head``) ends quietly.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import math
 import os
@@ -247,7 +249,7 @@ def _main(argv: list[str] | None) -> int:
         check_argument_bounds(args)
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line
-            warnings.showwarning = _show_warning
+            warnings.showwarning = functools.partial(_show_warning, command=command)
             status = int(args.run(args) or 0)
         sys.stdout.flush()
         return status
@@ -292,8 +294,9 @@ def _message(err: BaseException) -> str:
     return text or type(err).__name__
 
 
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"warning: {message}", file=sys.stderr)
+def _show_warning(message, category, filename, lineno, file=None, line=None, *, command="efam") -> None:
+    # like the error line: the command, no source file:line (a user cannot act on it), one line
+    print(f"{command}: warning: {_message(message)}", file=sys.stderr)
 
 
 if __name__ == "__main__":

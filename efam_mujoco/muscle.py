@@ -46,6 +46,9 @@ NEUTRAL_BRAID_ANGLE_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
 
 #: Default lock-out stiffness beyond the admissible length range, N/m.
 DEFAULT_LOCK_STIFFNESS = 2.0e4
+#: gauge pressures ``free_length`` searches at: from vacuum to 100 MPa (past any fluidic muscle)
+ATMOSPHERE_PA = 101325.0
+MAX_GAUGE_PRESSURE_PA = 100e6
 
 
 class MuscleError(ValueError):
@@ -333,6 +336,15 @@ class Muscle:
         if check_units:
             check_pressure_Pa(pressure_Pa, "Muscle.free_length")
         P = np.asarray(pressure_Pa, dtype=float)
+        # a root search needs a pressure a fluid can have: a NaN found the rest length, 1e308 Pa
+        # ended in scipy's "function value is NaN"
+        bad = ~(np.isfinite(P) & (P >= -ATMOSPHERE_PA) & (P <= MAX_GAUGE_PRESSURE_PA))
+        if bad.any():
+            value = float(P.ravel()[int(np.argmax(bad.ravel()))])
+            raise ValueError(
+                f"Muscle.free_length: pressure {value:g} Pa is outside the gauge pressures a fluid can have "
+                f"here ({-ATMOSPHERE_PA:g} .. {MAX_GAUGE_PRESSURE_PA:g} Pa)"
+            )
         out = np.array([self._free_length_one(float(p)) for p in P.ravel()]).reshape(P.shape)
         return out if out.ndim else float(out)
 

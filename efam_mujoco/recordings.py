@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import hashlib
 import math
 import os
 import re
@@ -127,12 +128,18 @@ _ACCEPTED = "time_<unit>, length_<unit> | displacement_<unit>, pressure_<unit>, 
 BAD_ROW_POLICIES = ("error", "drop")
 
 
-def _shown(text: str, limit: int = 40) -> str:
-    """A header or cell as an error message quotes it: at most ``limit`` characters, and control
-    characters escaped (a binary file's bytes or a terminal escape sequence never reach the
-    screen as they are)."""
-    clipped = text if len(text) <= limit else text[:limit] + "..."
+def _shown(text: str, limit: int | None = 40) -> str:
+    """A header or cell as an error message quotes it: at most ``limit`` characters (None: all),
+    and control characters escaped (a binary file's bytes or a terminal escape sequence never
+    reach the screen as they are)."""
+    clipped = text if limit is None or len(text) <= limit else text[:limit] + "..."
     return clipped if clipped.isprintable() else clipped.encode("unicode_escape").decode("ascii")
+
+
+def shown_path(path: str | os.PathLike) -> str:
+    """A file name as an error message shows it: as it is, or escaped like a header cell when it
+    holds control characters (a name can carry a terminal escape sequence too); never cut."""
+    return _shown(str(path), None)
 
 
 def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, str, str, float]]:
@@ -242,7 +249,7 @@ def read_csv(
     if on_bad_rows not in BAD_ROW_POLICIES:
         raise ValueError(f"on_bad_rows must be one of {BAD_ROW_POLICIES}, got {on_bad_rows!r}")
     path = Path(path)
-    label = str(path)
+    label = shown_path(path)  # for messages; meta keeps the real name (write_csv compares it)
     if path.is_dir():
         raise RecordingError(f"{label}: is a folder, not a recording file")
     if path.exists() and not path.is_file():  # a FIFO or a device would block or never end
@@ -318,7 +325,7 @@ def read_csv(
             f"({length[int(np.argmax(length <= 0))]:g} m)"
         )
     meta = {
-        "source": label,
+        "source": str(path),
         "columns": [c.strip() for c in header],
         "rest_length_m": rest,
         "dropped_rows": dropped,
@@ -377,7 +384,9 @@ def drop_report(recording: Recording, limit: int = 5) -> str:
     )
     total = len(dropped) + sum(d.get("more", 0) for d in dropped)  # the list keeps 10 000 at most
     more = f"; and {total - limit} more" if total > limit else ""
-    return f"{recording.meta.get('source', 'recording')}: dropped {total} bad row(s): {shown}{more}"
+    return (
+        f"{shown_path(recording.meta.get('source', 'recording'))}: dropped {total} bad row(s): {shown}{more}"
+    )
 
 
 def read_recordings(
@@ -540,7 +549,7 @@ def check_plausibility(
     lo, hi = muscle.min_length_m, muscle.max_length_m
     findings: list[Finding] = []
     for rec in recordings:
-        src = rec.meta.get("source", "recording")
+        src = shown_path(rec.meta.get("source", "recording"))
         L, P, F = rec.length_m, rec.pressure_Pa, rec.force_N
         lcol, pcol, fcol = (
             _column(rec, "length|displacement"),
@@ -776,6 +785,27 @@ def add_recording_arguments(parser) -> None:
     )  # fmt: skip
 
 
+def refuse_copies(recordings: list[Recording], names: list[str] | None = None, prefix: str = "") -> None:
+    """Refuse two recordings with the same samples (a copy of a file under another name): a
+    second recording of the same test differs at least by its noise, and a copy would count the
+    same data twice, halving every error bar it enters. ``names`` (default: each recording's
+    source, else its index) name them in the message, after ``prefix``."""
+    if names is None:
+        names = [r.meta.get("source", f"recordings[{i}]") for i, r in enumerate(recordings)]
+    seen: dict[bytes, str] = {}
+    for rec, name in zip(recordings, names):
+        digest = hashlib.sha256()
+        for column in (rec.time_s, rec.length_m, rec.pressure_Pa, rec.force_N):
+            digest.update(np.ascontiguousarray(column, dtype=float).tobytes())
+        key = digest.digest()
+        if key in seen:
+            raise RecordingError(
+                f"{prefix}{shown_path(name)}: the same samples as {shown_path(seen[key])} (a copy: given "
+                "twice, it would count twice)"
+            )
+        seen[key] = name
+
+
 def read_for_fit(args, muscle, warn=None) -> list[Recording]:
     """Read ``args.files``, check their physical plausibility against ``muscle`` (errors unless
     ``--allow``), and decimate them to ``--max-samples``: what ``calibrate`` and ``diagnose`` fit.
@@ -798,6 +828,7 @@ def read_for_fit(args, muscle, warn=None) -> list[Recording]:
     recordings = read_recordings(
         args.files, rest_length_m=muscle.rest_length_m, on_bad_rows=args.on_bad_rows, warn=warn
     )
+    refuse_copies(recordings, args.files, prefix="FILE ")
     findings = check_plausibility(recordings, muscle, rated_pressure_Pa=rated * 1e3)
     enforce_plausibility(findings, allow=args.allow, warn=warn)
     recordings, note = decimate(recordings, args.max_samples)

@@ -105,12 +105,24 @@ def test_reader_units_dropouts_and_round_trip(tmp_path):
         (HEAD + "0,1,1,1,0,0,0\n0.1,1,1,0,0,0\n", "line 3: 6 fields"),
         (HEAD + "0,1,1,1,0,0,0\n0.1,1,,1,0,0,0\n", "line 3, column 3.*empty value"),
         ("time_s,foo_m\n", "unknown column"),
+        (
+            HEAD + "0,0,0,0,0,0,200\n0.1,0,0.0,0e3,1,0,201\n",
+            r"every command column \(p_s1m1_kPa, p_s1m2_kPa, p_s1m3_kPa\) is 0 in every row: nothing drives",
+        ),
     ],
 )
 def test_reader_names_file_line_and_column(tmp_path, text, message):
     with pytest.raises(ArmRecordingError, match=message) as err:
         read_csv(_csv(tmp_path, text), MUSCLES)
     assert "rec.csv" in str(err.value)
+
+
+def test_reader_shows_a_file_name_with_control_characters_escaped(tmp_path):
+    path = tmp_path / "arm\x1b]0;title\x07.csv"
+    path.write_text(HEAD + "0,1,1,1,0,0,0\n")
+    with pytest.raises(ArmRecordingError, match=r"arm\\x1b\]0;title\\x07\.csv: fewer than 2") as err:
+        read_csv(path, MUSCLES)
+    assert "\x1b" not in str(err.value) and "\x07" not in str(err.value)
 
 
 def test_replay_matches_plain_stepping(spec):

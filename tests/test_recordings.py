@@ -124,6 +124,19 @@ def test_missing_file_names_it(tmp_path):
         read_csv(tmp_path / "nope.csv")
 
 
+def test_a_file_name_with_control_characters_is_shown_escaped(tmp_path):
+    """A name holding a terminal escape sequence and a newline is named escaped, never raw; the
+    recording still keeps the real name (write_csv's input protection compares it)."""
+    name = "run\x1b[31m\n.csv"
+    with pytest.raises(RecordingError, match=r"run\\x1b\[31m\\n\.csv: fewer than 2") as err:
+        read_csv(write(tmp_path, GOOD.split("0.1,")[0], name))
+    assert "\x1b" not in str(err.value) and "\n" not in str(err.value)
+    rec = read_csv(write(tmp_path, GOOD, name))
+    assert rec.meta["source"] == str(tmp_path / name)
+    with pytest.raises(RecordingError, match="refusing to overwrite"):
+        write_csv(tmp_path / name, rec)
+
+
 @pytest.mark.parametrize(
     "change, words",
     [

@@ -107,6 +107,36 @@ def test_diagnose_arm_refuses_millimetres_under_a_metre_header(lab, capsys):
             r"column 'tip_[xyz]_m'", r"rest length 0\.17", r"'tip_[xyz]_mm'")  # fmt: skip
 
 
+def test_diagnose_arm_refuses_a_recording_no_pressure_drives(lab, capsys):
+    """Before: commands of 0 kPa in every row were replayed and 'diagnosed' (the arm only sags)."""
+    folder, model, _, rec = lab
+    idle = write_csv(
+        folder / "idle.csv", ArmRecording(rec.time_s, rec.muscles, 0 * rec.command_Pa, rec.tip_m)
+    )
+    err = run_bad(["diagnose-arm", idle, "--model", model], folder, capsys,
+                  r"idle\.csv: every command column", "nothing drives the arm")  # fmt: skip
+    assert len(err.strip().splitlines()) <= 2, err  # the error line (and the time-step warning)
+
+
+def test_diagnose_arm_shows_a_python_warning_as_one_line(lab, capsys):
+    """The lab's 4 ms step draws the builder's TimestepWarning: one line in the error line's form,
+    from ``efam diagnose-arm`` and from ``python -m efam_mujoco.armdiag.report`` (before: Python's
+    ``/path/builder.py:133: TimestepWarning: ...`` plus the source line, or a traceback)."""
+    from efam_mujoco.armdiag.report import main as module_main
+
+    folder, model = lab[0], lab[1]
+    bad = folder / "bad_column.csv"
+    bad.write_text("time_s,p_s1m1_kPa,p_s1m2_kPa,p_s1m3_kPa,tip_x_m,tip_y_m,tip_zz_m\n0,1,1,1,0,0,0.2\n")
+    from_efam = run_cli(["diagnose-arm", bad, "--model", model], folder, capsys)[2]
+    assert module_main([str(bad), "--model", str(model)]) == 2
+    for err in (from_efam, capsys.readouterr().err):
+        lines = err.strip().splitlines()
+        assert len(lines) == 2, err
+        assert lines[0].startswith("efam diagnose-arm: warning: arm: timestep_s = 4 ms is stable only"), err
+        assert lines[1].startswith("efam diagnose-arm: error: ") and "tip_zz_m" in lines[1], err
+        assert ".py:" not in err and "TimestepWarning" not in err
+
+
 # ------------------------------------------------------------------------------ efam arm (4-5)
 
 

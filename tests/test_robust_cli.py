@@ -154,6 +154,14 @@ def test_usage_errors_name_the_flag(folder, capsys, argv, pattern):
     run_bad(argv, folder, capsys, pattern)
 
 
+@pytest.mark.parametrize("verb", ["calibrate", "diagnose"])
+def test_a_copy_of_a_recording_under_another_name_is_refused(folder, capsys, verb):
+    # the same samples under another name would count twice (every error bar halved)
+    (folder / "copy.csv").write_bytes((folder / "rec.csv").read_bytes())
+    run_bad([verb, "rec.csv", "copy.csv", "--muscle", "FAM1"], folder, capsys,
+            r"FILE copy\.csv: the same samples as rec\.csv \(a copy")  # fmt: skip
+
+
 # ------------------------------------------------------------- outputs never overwrite inputs
 OVERWRITES = [
     (
@@ -783,3 +791,17 @@ def test_a_file_output_inside_a_report_folder_is_refused(tmp_path):
     """--json rep/report.txt with --report rep: one silently replaced the other."""
     with pytest.raises(OutputError, match="is inside the --report folder"):
         check_outputs({"--json": tmp_path / "rep" / "report.txt", "--report": tmp_path / "rep"}, {})
+
+
+def test_the_python_api_refuses_the_same_samples_twice():
+    from efam_mujoco import load_muscle
+    from efam_mujoco.calibrate import calibrate
+    from efam_mujoco.diagnose import diagnose
+    from efam_mujoco.recordings import Recording, RecordingError
+
+    t = np.linspace(0, 10, 2000)
+    rec = Recording(t, 0.17 + 0.01 * np.sin(t), 2e5 + 0 * t, 50 + np.sin(t), {"source": "a.csv"})
+    twin = Recording(rec.time_s.copy(), rec.length_m.copy(), rec.pressure_Pa.copy(), rec.force_N.copy())
+    for fit in (calibrate, diagnose):
+        with pytest.raises(RecordingError, match=r"recordings\[1\]: the same samples as a\.csv"):
+            fit([rec, twin], load_muscle("FAM1"))

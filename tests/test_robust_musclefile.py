@@ -327,3 +327,19 @@ def test_save_muscle_refuses_what_the_reader_would(tmp_path, change, key):
     assert not list(tmp_path.iterdir())
     with pytest.raises(TypeError, match="muscle must be a Muscle"):  # the arguments swapped
         save_muscle(load_muscle("FAM1"), tmp_path / "m.json")
+
+
+@pytest.mark.parametrize("pressure_Pa", [float("nan"), float("inf"), 1e308, -2e5, [3e5, float("nan")]])
+def test_free_length_refuses_a_pressure_no_fluid_has(pressure_Pa):
+    # a NaN found the rest length silently, 1e308 Pa ended in scipy's "function value is NaN"
+    with pytest.raises(
+        ValueError, match=r"Muscle\.free_length: pressure .* Pa is outside the gauge pressures"
+    ):
+        load_muscle("FAM1").free_length(pressure_Pa)
+
+
+def test_free_length_at_real_pressures_is_unchanged_by_the_check():
+    # vacuum and the top of the range are still searched: the bounds are the fluid's, not the muscle's
+    m = load_muscle("FAM1")
+    assert m.free_length(0.0) == pytest.approx(m.rest_length_m)
+    assert m.free_length(-101325.0) <= m.rest_length_m <= m.free_length(4e5)

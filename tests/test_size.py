@@ -3,6 +3,7 @@
 import json
 import math
 from dataclasses import replace
+from importlib import resources
 
 import pytest
 
@@ -72,6 +73,20 @@ def test_bad_catalogue_names_the_entry_and_key(tmp_path):
     path.write_text(json.dumps(doc))
     with pytest.raises(CatalogueError, match="has no unit"):
         load_catalogue(path)
+
+
+@pytest.mark.parametrize(
+    "key, name",
+    [("sleeves", "\x1b[31mred"), ("sleeves", ""), ("sleeves", "   "), ("sleeves", 7), ("tubings", "a\nb")],
+)
+def test_catalogue_names_must_be_visible_text(tmp_path, key, name):
+    doc = json.loads(resources.files("efam_mujoco.size").joinpath("catalogue.json").read_text())
+    doc[key][1]["name"] = name
+    path = tmp_path / "cat.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(CatalogueError, match=rf"{key}\[1\]: key 'name' must be non-blank text") as err:
+        load_catalogue(path)
+    assert "\x1b" not in str(err.value) and "\n" not in str(err.value)  # shown escaped, never raw
 
 
 # -------------------------------------------------------------------------------- FAM1 back
@@ -306,6 +321,8 @@ def test_cli_bad_inputs_are_one_line(extra, message, capsys):
         (dict(bundle=2), "bundle"),
         (dict(payload_kg=1.0), "payload_kg"),
         (dict(length_m=17.0), "length_m"),
+        (dict(unguided="no"), r"unguided: must be True or False, got 'no'"),
+        (dict(unguided=1), "unguided: must be True or False"),
     ],
 )
 def test_request_errors_name_the_parameter(kw, message):

@@ -53,6 +53,26 @@ def test_load_refuses_unknown_names():
         suite.load("bundle", "reach", task_kwargs={"seed": 1})
 
 
+@pytest.mark.parametrize("time_limit", [-1, 0, float("nan"), "10", True])
+def test_load_refuses_a_time_limit_that_is_not_a_positive_length(time_limit):
+    with pytest.raises(ValueError, match="time_limit must be a positive episode length in s"):
+        suite.load("bundle", "reach", task_kwargs={"time_limit": time_limit})
+
+
+def test_an_infinite_time_limit_is_dm_controls_no_limit():
+    env = suite.load("bundle", "reach", task_kwargs={"time_limit": float("inf")})
+    assert env.reset().first()
+    zero = np.zeros(env.action_spec().shape)
+    assert not any(env.step(zero).last() for _ in range(5))  # no episode end from the limit
+
+
+def test_render_refuses_an_image_without_pixels():
+    physics = suite.load("bundle", "reach").physics
+    for height, width in [(0, 0), (-1, 320), (240, 0), (2.5, 320)]:
+        with pytest.raises(ValueError, match=r"height, width: an image is at least 1 x 1 pixels"):
+            physics.render(height, width)
+
+
 @pytest.mark.parametrize("domain,task", TASKS)
 def test_model_components_named_and_cameras(domain, task):
     env = suite.load(domain, task)

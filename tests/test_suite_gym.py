@@ -54,3 +54,11 @@ def test_adapter_refuses_a_step_after_the_end_and_says_when_it_clips():
         env.step(env.action_space.sample())
     env.reset()
     env.step(env.action_space.sample())  # a new episode steps again
+
+
+def test_adapter_refuses_an_image_size_without_pixels():
+    import pytest
+
+    for size in [(0, 0), (-240, 320), (240,), "240x320"]:
+        with pytest.raises(ValueError, match=r"size"):
+            SuiteEnv("bundle", "reach", render_mode="rgb_array", size=size)

@@ -23,10 +23,10 @@ column                meaning
 
 The arm is taken to be at rest under the first row's commands at the first time. Bad input
 (unknown column, unknown unit, a missing muscle, a non-numeric or non-finite value, a
-negative pressure, time not increasing, a time base no recorder makes) is an error naming the
-file, the line and the column. Against the arm model (:func:`check_against_model`): commands far
-above the model's highest pressure and tip positions farther from the base than the arm can
-reach are errors too (a unit mix-up, with the unit that fits); commands a little above that
+negative pressure, time not increasing, a time base no recorder makes, commands that are 0
+everywhere) is an error naming the file, the line and the column. Against the arm model
+(:func:`check_against_model`): commands far above the model's highest pressure and tip
+positions farther from the base than the arm can reach are errors too (a unit mix-up, with the unit that fits); commands a little above that
 pressure are replayed at it, with a warning that counts them.
 """
 
@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import write_text_atomic
-from ..recordings import MAX_INTERVAL_S, MIN_INTERVAL_S
+from ..recordings import MAX_INTERVAL_S, MIN_INTERVAL_S, shown_path
 from ..units import LENGTH, PRESSURE, TIME, UnitError, factor, split_unit, unit_that_fits
 
 
@@ -155,7 +155,7 @@ def _classify(name: str, muscles: list[str], label: str, line: int, column: int)
 def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
     """Read an arm recording (format in the module docstring) for an arm with ``muscles``."""
     path = Path(path)
-    label = str(path)
+    label = shown_path(path)  # for messages; meta keeps the real name
     try:
         with path.open(newline="") as handle:
             rows = [(n, r) for n, r in enumerate(csv.reader(handle), 1) if r and any(c.strip() for c in r)]
@@ -223,6 +223,12 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         )
     _check_time_base(t, f"{label}: column {col['time', None] + 1} ('{time_name}')", time_name)
     commands = np.column_stack([values[:, col["command", m]] for m in muscles])
+    if not np.any(commands):  # an unplugged logger channel or a wrong file: the arm only sags
+        names = ", ".join(header[col["command", m]].strip() for m in muscles)
+        raise ArmRecordingError(
+            f"{label}: every command column ({names}) is 0 in every row: nothing drives the arm, so "
+            "there is nothing to diagnose"
+        )
     measured = None
     if all(("measured", m) in col for m in muscles):
         measured = np.column_stack([values[:, col["measured", m]] for m in muscles])
@@ -232,7 +238,7 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         raise ArmRecordingError(f"{label}: no row has a tip position")
     extra = {key: values[:, i] for (role, key), i in col.items() if role == "extra"}
     meta = {
-        "source": label,
+        "source": str(path),
         "columns": [h.strip() for h in header],
         "dropouts": int(np.isnan(tip[:, 0]).sum()),
         "lines": [line for line, _ in rows[1:]],  # the file line of each sample
@@ -283,7 +289,7 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
     :data:`COMMAND_REFUSE_FACTOR` x the highest pressure and tips farther from the base than
     :data:`REACH_FACTOR` x the rest reach. Returns one message per column with commands a little
     above the highest pressure (replayed at it: the caller warns, never silent)."""
-    src = rec.meta.get("source", "recording")
+    src = shown_path(rec.meta.get("source", "recording"))
     max_Pa = np.broadcast_to(np.asarray(max_command_Pa, float), (len(rec.muscles),))
     columns = rec.meta.get("command_columns") or [f"p_{m}_Pa" for m in rec.muscles]
     notes = []

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -178,8 +178,12 @@ def run(args) -> int:
 
 
 def main(argv=None) -> int:
-    """``python -m efam_mujoco.armdiag.report`` (same as ``efam diagnose-arm``)."""
-    parser = argparse.ArgumentParser(prog="efam diagnose-arm")
-    register_cli(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["diagnose-arm", *(argv or [])])
-    return args.run(args)
+    """``python -m efam_mujoco.armdiag.report ...`` = ``efam diagnose-arm ...`` (the same checks,
+    one-line errors and warnings: the efam command line runs it)."""
+    from ..cli import main as efam_main
+
+    return efam_main(["diagnose-arm", *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..muscle import Muscle, MuscleError
 from ..musclefile import save_muscle
-from ..recordings import MIN_SAMPLES, Recording
+from ..recordings import MIN_SAMPLES, Recording, refuse_copies
 from ..stress import LAW_NAMES, LAWS, StressLaw
 from .blocked import BlockedForceFit, blocked_points, fit_blocked
 from .data import Samples, pool
@@ -142,6 +142,7 @@ def calibrate(
             raise TypeError(
                 f"calibrate: recordings must be Recording objects (read_csv), got {type(r).__name__}"
             )
+    refuse_copies(recordings)
     total = sum(len(r) for r in recordings)
     if total < MIN_SAMPLES:
         # three rows gave a muscle file without a word

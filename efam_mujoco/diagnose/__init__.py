@@ -26,7 +26,7 @@ from functools import partial
 import numpy as np
 
 from ..muscle import Muscle
-from ..recordings import MIN_SAMPLES, Recording
+from ..recordings import MIN_SAMPLES, Recording, refuse_copies
 from .confidence import (
     CALIBRATION,
     OUTSIDE,
@@ -195,6 +195,7 @@ def diagnose(
             )
         if len(r) < MIN_SAMPLES:
             raise ValueError(f"{r.meta.get('source', 'recording')}: too few samples to diagnose ({len(r)})")
+    refuse_copies(recordings)
     for name in candidates:
         get(name)
     fitted = refit(muscle, recordings) if laws is None else refit(muscle, recordings, laws)

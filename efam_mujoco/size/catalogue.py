@@ -223,7 +223,22 @@ def _entries(doc: dict, key: str, label: str) -> list:
 
 def _where(label: str, key: str, i: int, entry: dict) -> str:
     name = entry.get("name")
-    return f"{label}: {key}[{i}]" + (f" ('{name}')" if isinstance(name, str) else "")
+    shown = isinstance(name, str) and name.strip() and name.isprintable()  # else _name refuses it
+    return f"{label}: {key}[{i}]" + (f" ('{name}')" if shown else "")
+
+
+def _name(entry: dict, where: str) -> str:
+    """The entry's ``name`` (``where`` when it has none). A design names its parts by it in tables
+    and JSON, so it must be visible text: a blank name cannot be told apart, and control characters
+    (a terminal escape sequence) would reach the user's screen as they are."""
+    if "name" not in entry:
+        return where
+    name = entry["name"]
+    if not isinstance(name, str) or not name.strip() or not name.isprintable():
+        raise CatalogueError(
+            f"{where}: key 'name' must be non-blank text without control characters, got {name!r}"
+        )
+    return name
 
 
 def _known_keys(block: dict, plain: tuple, bases: tuple, where: str) -> None:
@@ -255,7 +270,7 @@ _TOP_KEYS = ("format", "description", "sources", "sleeves", "tubings", "latex", 
 def _sleeve(entry: dict, where: str) -> Sleeve:
     _known_keys(entry, *_SLEEVE_KEYS, where)
     sleeve = Sleeve(
-        name=str(entry.get("name", where)),
+        name=_name(entry, where),
         material=str(entry.get("material", "")),
         reference_diameter_m=_length(entry, "reference_diameter", where, "diameter"),
         min_diameter_m=_length(entry, "min_diameter", where, "diameter"),
@@ -283,7 +298,7 @@ def _tubing(entry: dict, where: str) -> Tubing:
             f"{where}: the outer diameter ({outer * 1e3:g} mm) must exceed the inner diameter "
             f"({inner * 1e3:g} mm) by twice the thinnest wall ({MIN_WALL_M * 1e3:g} mm)"
         )
-    return Tubing(str(entry.get("name", where)), inner, outer, _rating(entry, where))
+    return Tubing(_name(entry, where), inner, outer, _rating(entry, where))
 
 
 def load_catalogue(path: str | Path | None = None) -> Catalogue:

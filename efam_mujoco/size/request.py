@@ -71,6 +71,8 @@ class Request:
                                         or self.bundle < 3):  # fmt: skip
             bad("bundle", self.bundle, "must be a whole number of muscles >= 3")
         finite("payload_kg", self.payload_kg)
+        if not isinstance(self.unguided, bool):  # "no" or "false" would be truthy: guided taken for unguided
+            bad("unguided", self.unguided, "must be True or False")
         if self.payload_kg < 0:
             bad("payload_kg", self.payload_kg, "must be >= 0 kg")
         if self.payload_kg and self.bundle is None:

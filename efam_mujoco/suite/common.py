@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import collections
 import math
+import numbers
 
 import mujoco as mj
 import numpy as np
@@ -304,6 +305,7 @@ class EfamPhysics(mujoco.Physics):
     ):  # fmt: skip
         """``dm_control``'s ``Physics.render`` with the muscles drawn (see :meth:`draw_muscles`)
         before any ``scene_callback`` of the caller."""
+        check_image_size(height, width, "height, width")
 
         def callback(physics, scene):
             physics.draw_muscles(scene)
@@ -496,6 +498,17 @@ class EfamTask(base.Task):
         obs["section_bends"] = physics.section_bends().ravel()
         obs["section_lengths"] = physics.section_lengths()
         return obs
+
+
+def check_image_size(height, width, argument: str) -> None:
+    """Refuse an image size that is not whole numbers of pixels >= 1 each way (ValueError naming
+    ``argument``): dm_control checks only the framebuffer's upper bound; a negative size fails in
+    numpy with a message naming nothing, a zero one gives an empty image."""
+    for value in (height, width):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+            raise ValueError(
+                f"{argument}: an image is at least 1 x 1 pixels (whole numbers), got {height!r} x {width!r}"
+            )
 
 
 def make_environment(

@@ -26,7 +26,7 @@ except ImportError as error:  # pragma: no cover - the message is the point
         "efam_mujoco.suite.gym needs gymnasium: pip install gymnasium (or pip install -e '.[rl]')"
     ) from error
 
-from . import ALL_TASKS, load
+from . import ALL_TASKS, common, load
 
 
 class SuiteEnv(gymnasium.Env):
@@ -45,6 +45,9 @@ class SuiteEnv(gymnasium.Env):
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if not isinstance(size, (tuple, list)) or len(size) != 2:
+            raise ValueError(f"size must be (height, width) in pixels, got {size!r}")
+        common.check_image_size(*size, "size (height, width)")  # now, not at the first render()
         self.domain, self.task = domain, task
         self.task_kwargs = dict(task_kwargs or {})
         self.render_mode, self.camera, self.size = render_mode, camera, size

@@ -9,6 +9,7 @@ rest under admissible pressures, so every episode is solvable.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -346,6 +347,14 @@ class Domain:
 
     def environment(self, task_name, time_limit=None, random=None, environment_kwargs=None, arm_options=None):
         """A ``control.Environment`` of task ``task_name`` on this domain's arm in its scene."""
+        time_limit = self.time_limit_s if time_limit is None else time_limit
+        # refused before the arm is built: dm_control would end a non-positive episode at its
+        # first step, and a NaN one never; inf is dm_control's "no limit" and stays allowed
+        if (isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real)
+                or math.isnan(time_limit) or time_limit <= 0):  # fmt: skip
+            raise ValueError(
+                f"time_limit must be a positive episode length in s (inf: no limit), got {time_limit!r}"
+            )
         spec = self.make_arm(**(arm_options or {}))
         radius = {"target_radius_m": self.target_radius_m}
         task_class, scene, task_options = {
@@ -360,7 +369,7 @@ class Domain:
         }[task_name]  # fmt: skip
         task = task_class(spec, self.limits, random=random, **task_options)
         return common.make_environment(
-            self.physics_class, spec, task, time_limit=self.time_limit_s if time_limit is None else time_limit,
+            self.physics_class, spec, task, time_limit=time_limit,
             control_timestep=self.control_timestep_s, environment_kwargs=environment_kwargs,
             target_radius_m=self.target_radius_m, **scene,
         )  # fmt: skip
