@@ -288,10 +288,13 @@ def _terminate_as_interrupt():
 
 
 def _message(err: BaseException) -> str:
+    """The one line an error or warning prints: whitespace runs as one space, and any other
+    control character (a terminal escape sequence in a file name) escaped, never sent as is."""
     if isinstance(err, OSError) and err.filename and err.strerror:
-        return f"{err.filename}: {err.strerror}"
-    text = " ".join(str(err).split())
-    return text or type(err).__name__
+        text = f"{err.filename}: {err.strerror}"
+    else:
+        text = " ".join(str(err).split()) or type(err).__name__
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None, *, command="efam") -> None:

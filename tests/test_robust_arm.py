@@ -301,3 +301,23 @@ def test_marker_noise_is_estimated_with_every_other_sample_missing():
     full = noise_floor(t, tip)
     tip[1::2] = np.nan
     assert full == pytest.approx(5e-4, rel=0.15) and noise_floor(t, tip) == pytest.approx(5e-4, rel=0.15)
+
+
+@pytest.mark.parametrize(
+    "options, key",
+    [
+        ({"angles_deg": (0.0, float("nan"), 240.0)}, r"angles_deg\[1\]"),
+        ({"angles_deg": (0.0, "120", 240.0)}, r"angles_deg\[1\]"),
+        ({"radius_m": "0.02"}, "radius_m"),
+        ({"radius_m": float("inf")}, "radius_m"),
+        ({"disks": True}, "disks"),
+        ({"end_mass_kg": "none"}, "end_mass_kg"),
+    ],
+)
+def test_a_section_names_the_argument_that_is_not_a_finite_number(options, key):
+    # a NaN angle built an arm with a muscle nowhere; a text radius ended in a bare TypeError
+    from efam_mujoco import load_muscle
+
+    fam1 = load_muscle("FAM1")
+    with pytest.raises(ValueError, match=rf"section: {key} must be"):
+        arm.SectionSpec((fam1,) * 3, **options)

@@ -805,3 +805,11 @@ def test_the_python_api_refuses_the_same_samples_twice():
     for fit in (calibrate, diagnose):
         with pytest.raises(RecordingError, match=r"recordings\[1\]: the same samples as a\.csv"):
             fit([rec, twin], load_muscle("FAM1"))
+
+
+@pytest.mark.parametrize("verb", [["view"], ["muscle"], ["calibrate", "--muscle", "FAM1"]])
+def test_a_control_character_in_a_file_name_reaches_the_terminal_escaped(folder, capsys, verb):
+    # an escape sequence in a name (here: switch to red) must not be sent to the terminal as is
+    name = "\x1b[31mred.csv"
+    err = run_bad([*verb, name], folder, capsys, r"\\x1b\[31mred\.csv")
+    assert "\x1b" not in err

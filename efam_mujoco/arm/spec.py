@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +44,14 @@ def default_radius(muscles: tuple[Muscle, ...], clearance: float = DEFAULT_CLEAR
     return widest * (1 + clearance) / (2 * math.sin(math.pi / count))
 
 
+def _finite(value, key: str) -> float:
+    """``value`` as a float, refused (ValueError naming ``section: key``) unless it is a finite real
+    number: a NaN angle built an arm with a muscle nowhere, a text radius ended in a TypeError."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"section: {key} must be a finite number, got {value!r}")
+    return float(value)
+
+
 @dataclass(frozen=True)
 class SectionSpec:
     """One bundle of M >= 3 muscles in parallel between two plates.
@@ -73,20 +82,20 @@ class SectionSpec:
             object.__setattr__(
                 self, "angles_deg", tuple(360.0 * i / len(muscles) for i in range(len(muscles)))
             )
-        angles = tuple(float(a) for a in self.angles_deg)
+        angles = tuple(_finite(a, f"angles_deg[{i}]") for i, a in enumerate(self.angles_deg))
         object.__setattr__(self, "angles_deg", angles)
         if len(angles) != len(muscles):
             raise ValueError(f"section: {len(muscles)} muscles but {len(angles)} angles_deg")
         if self.radius_m is None:
             object.__setattr__(self, "radius_m", default_radius(muscles))
-        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
+        if not (_finite(self.radius_m, "radius_m") > 0):
             raise ValueError(f"section: radius_m must be positive, got {self.radius_m}")
-        if int(self.disks) != self.disks or self.disks < 1:
+        if isinstance(self.disks, bool) or int(_finite(self.disks, "disks")) != self.disks or self.disks < 1:
             raise ValueError(f"section: disks must be a positive integer, got {self.disks}")
         object.__setattr__(self, "disks", int(self.disks))
         for key in ("end_mass_kg", "body_mass_kg", "plate_mass_kg", "disk_mass_kg"):
             value = getattr(self, key)
-            if value is not None and not (math.isfinite(value) and value >= 0):
+            if value is not None and not (_finite(value, key) >= 0):
                 raise ValueError(f"section: {key} must be >= 0, got {value}")
         self._check_no_overlap()
 

@@ -23,7 +23,7 @@ can. ``named_physics_probability`` maps two measured quantities to the probabili
 winning library term is the right physics: the share of the held-out excess over the noise floor
 that it removes, and the held-out gain a purely data-driven correction (``datadriven``, the one
 reported, with the input-error features) still finds on top of it, and, per library term, an
-offset of its log-odds: some terms (a force offset, a drift, a braid stretch) are what an
+offset of its log-odds: some terms (a braid stretch, end effects, a drift) are what an
 unmodelled effect most often looks like, and win in its place more often than others, which the
 two measured quantities do not say. The offsets are shrunk towards zero by a ridge penalty whose
 weight is chosen by ten-fold cross-validation on the calibration recordings
