@@ -15,7 +15,8 @@ and unloading)::
     ...
 
 Every header is ``<quantity>_<unit>`` (units from :mod:`efam_mujoco.units`, any unit of the right
-quantity): exactly one of each role below, nothing else.
+quantity): exactly one of each role below, nothing else. The quantity is read in any case
+(``Time_s``, ``FORCE_N``); the unit as written (``mN`` is not ``MN``).
 
 ===========  =============================================================================
 role         accepted headers
@@ -152,10 +153,13 @@ def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, s
                 f"{label}: line {line}, column {index + 1}: empty header (expected {_ACCEPTED})"
             )
         base, unit = split_unit(name)
-        if name in _BASE_ROLE:
+        # the quantity's name in any case ('Time_s', 'FORCE_N'); the unit's case is meaning (mN, MN)
+        base = base.lower()
+        if name.lower() in _BASE_ROLE:
+            plain = name.lower()
             raise RecordingError(
                 f"{label}: line {line}, column '{_shown(name)}' has no unit; write e.g. "
-                f"'{name}_{'kPa' if name == 'pressure' else next(iter(_unit_table(name)))}'"
+                f"'{plain}_{'kPa' if plain == 'pressure' else next(iter(_unit_table(plain)))}'"
             )
         if base not in _BASE_ROLE:
             for sep, word in ((";", "semicolon"), ("\t", "tab")):
@@ -499,7 +503,7 @@ def _line(recording: Recording, index: int) -> str:
 
 def _column(recording: Recording, base: str) -> str:
     for name in recording.meta.get("columns", []):
-        if split_unit(name)[0] in base.split("|"):
+        if split_unit(name)[0].lower() in base.split("|"):
             return name
     return base.split("|")[0]
 

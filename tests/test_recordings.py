@@ -19,6 +19,19 @@ def write(tmp_path, text, name="rec.csv"):
 GOOD = "time_s,length_m,pressure_kPa,force_N\n0,0.17,100,40\n0.1,0.18,100,30\n0.2,0.19,100,20\n"
 
 
+def test_quantity_names_are_read_in_any_case_units_as_written(tmp_path):
+    # 'Time_s, Length_mm, Pressure_kPa, Tension_N' as a logger writes it: the quantities are
+    # case-free, the units are not (mN is not MN)
+    text = "Time_s, Length_mm, Pressure_kPa, TENSION_N\n0,170,100,-40\n0.1,180,100,-30\n0.2,190,100,-20\n"
+    rec = read_csv(write(tmp_path, text))
+    assert np.allclose(rec.length_m, [0.17, 0.18, 0.19]) and np.allclose(rec.force_N, [40, 30, 20])
+    assert np.allclose(rec.pressure_Pa, 1e5)
+    with pytest.raises(RecordingError, match=r"unknown time unit 'S'"):
+        read_csv(write(tmp_path, text.replace("Time_s", "TIME_S"), "upper.csv"))
+    with pytest.raises(RecordingError, match=r"column 'Pressure' has no unit; write e\.g\. 'pressure_kPa'"):
+        read_csv(write(tmp_path, text.replace("Pressure_kPa", "Pressure"), "nounit.csv"))
+
+
 def test_reads_si_and_push_sign(tmp_path):
     rec = read_csv(write(tmp_path, GOOD))
     assert np.allclose(rec.time_s, [0, 0.1, 0.2])
