@@ -25,6 +25,7 @@ import os
 import re
 import signal
 import sys
+import unicodedata
 import warnings
 from pathlib import Path
 
@@ -69,7 +70,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
     def error(self, message):
         """Print ``<prog>: error: <message> (<prog> --help)`` on standard error and exit 2."""
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {_visible(message)} (see {self.prog} --help)\n")
 
 
 class _ExactSubparsers:
@@ -288,13 +289,21 @@ def _terminate_as_interrupt():
 
 
 def _message(err: BaseException) -> str:
-    """The one line an error or warning prints: whitespace runs as one space, and any other
-    control character (a terminal escape sequence in a file name) escaped, never sent as is."""
+    """The one line an error or warning prints: its lines joined by one space, and any control
+    character left (a terminal escape sequence in a file name) escaped, never sent as is."""
     if isinstance(err, OSError) and err.filename and err.strerror:
         text = f"{err.filename}: {err.strerror}"
     else:
-        text = " ".join(str(err).split()) or type(err).__name__
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+        text = " ".join(line.strip() for line in str(err).splitlines() if line.strip())
+    return _visible(text) or type(err).__name__
+
+
+def _visible(text: str) -> str:
+    """``text`` with every control or format character (Unicode category C: an escape, a bell,
+    a newline inside a name) written as its escape; spaces, accents and symbols stay as they are."""
+    return "".join(
+        c.encode("unicode_escape").decode("ascii") if unicodedata.category(c)[0] == "C" else c for c in text
+    )
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None, *, command="efam") -> None:

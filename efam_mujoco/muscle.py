@@ -333,17 +333,24 @@ class Muscle:
         the direction the pressure moves it. Vectorised over pressures (a loop of root finds).
         Pressures in Pa (a warning below 1000 Pa; ``check_units=False`` when the caller has
         checked a set these pressures belong to, e.g. one section's differential pressures)."""
+        try:
+            if pressure_Pa is None or isinstance(pressure_Pa, (str, bytes)):
+                raise TypeError
+            P = np.asarray(pressure_Pa, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"Muscle.free_length: pressure_Pa must be numbers (Pa), got {pressure_Pa!r}"
+            ) from None
         if check_units:
-            check_pressure_Pa(pressure_Pa, "Muscle.free_length")
-        P = np.asarray(pressure_Pa, dtype=float)
+            check_pressure_Pa(P, "Muscle.free_length")
         # a root search needs a pressure a fluid can have: a NaN found the rest length, 1e308 Pa
         # ended in scipy's "function value is NaN"
         bad = ~(np.isfinite(P) & (P >= -ATMOSPHERE_PA) & (P <= MAX_GAUGE_PRESSURE_PA))
         if bad.any():
             value = float(P.ravel()[int(np.argmax(bad.ravel()))])
             raise ValueError(
-                f"Muscle.free_length: pressure {value:g} Pa is outside the gauge pressures a fluid can have "
-                f"here ({-ATMOSPHERE_PA:g} .. {MAX_GAUGE_PRESSURE_PA:g} Pa)"
+                f"Muscle.free_length: pressure {value!r} Pa is outside the gauge pressures a fluid can "
+                f"have here ({-ATMOSPHERE_PA:g} .. {MAX_GAUGE_PRESSURE_PA:g} Pa)"
             )
         out = np.array([self._free_length_one(float(p)) for p in P.ravel()]).reshape(P.shape)
         return out if out.ndim else float(out)

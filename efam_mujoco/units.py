@@ -46,7 +46,11 @@ def factor(unit: str, quantity: str, where: str = "") -> float:
     if unit not in table:
         known = ", ".join(sorted(table))
         place = f"{where}: " if where else ""
-        raise UnitError(f"{place}unknown {quantity} unit '{unit}' (known: {known})")
+        # a unit's case is its meaning (mPa, MPa), so it is never guessed; one that differs only
+        # in case is named (a logger that writes every header in capitals: 'TIME_S')
+        alike = [u for u in table if str(unit).lower() == u.lower()]
+        hint = f"; units are case-sensitive: did you mean '{alike[0]}'?" if len(alike) == 1 else ""
+        raise UnitError(f"{place}unknown {quantity} unit '{unit}' (known: {known}){hint}")
     return table[unit]
 
 

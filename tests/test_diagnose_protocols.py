@@ -499,6 +499,20 @@ def test_a_term_that_often_stands_in_for_other_physics_gets_a_lower_physics_prob
         assert sum(v.probabilities.values()) == pytest.approx(1.0)
 
 
+def test_the_physics_map_never_reorders_the_bootstraps_shares():
+    # the map is fitted on the raw winner's measurements and term: one value for every effect,
+    # so a term with a quarter of the draws and a large offset (softening) never overtakes the
+    # winner with three quarters and a negative one (a braid stretch)
+    from efam_mujoco.diagnose.confidence import CALIBRATION
+
+    assert CALIBRATION.effect_offset["softening"] > CALIBRATION.effect_offset["braid_compliance"]
+    raw = {"none": 0.0, "braid_compliance": 0.75, "softening": 0.25}
+    v = verdict(raw, excess_cut=0.5, dd_gain=0.1, n_blocks=40, dd_z=0.0)
+    q = named_physics_probability(0.5, 0.1, CALIBRATION, "braid_compliance")
+    assert v.answer == "braid_compliance" and v.physics_probability == pytest.approx(q)
+    assert v.probabilities["braid_compliance"] == pytest.approx(3 * v.probabilities["softening"])
+
+
 def test_none_is_less_sure_when_an_effect_comes_close_on_every_block():
     # the best effect's separation from none is the paired log-ratio z of the effect against
     # none after the relevance margin: an effect 10 % better in every block (RMS 5 %, over the

@@ -26,7 +26,7 @@ def test_quantity_names_are_read_in_any_case_units_as_written(tmp_path):
     rec = read_csv(write(tmp_path, text))
     assert np.allclose(rec.length_m, [0.17, 0.18, 0.19]) and np.allclose(rec.force_N, [40, 30, 20])
     assert np.allclose(rec.pressure_Pa, 1e5)
-    with pytest.raises(RecordingError, match=r"unknown time unit 'S'"):
+    with pytest.raises(RecordingError, match=r"unknown time unit 'S'.*case-sensitive: did you mean 's'\?"):
         read_csv(write(tmp_path, text.replace("Time_s", "TIME_S"), "upper.csv"))
     with pytest.raises(RecordingError, match=r"column 'Pressure' has no unit; write e\.g\. 'pressure_kPa'"):
         read_csv(write(tmp_path, text.replace("Pressure_kPa", "Pressure"), "nounit.csv"))

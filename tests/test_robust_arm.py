@@ -312,6 +312,7 @@ def test_marker_noise_is_estimated_with_every_other_sample_missing():
         ({"radius_m": float("inf")}, "radius_m"),
         ({"disks": True}, "disks"),
         ({"end_mass_kg": "none"}, "end_mass_kg"),
+        ({"disks": 10**400}, "disks"),
     ],
 )
 def test_a_section_names_the_argument_that_is_not_a_finite_number(options, key):
@@ -321,3 +322,16 @@ def test_a_section_names_the_argument_that_is_not_a_finite_number(options, key):
     fam1 = load_muscle("FAM1")
     with pytest.raises(ValueError, match=rf"section: {key} must be"):
         arm.SectionSpec((fam1,) * 3, **options)
+
+
+def test_a_section_takes_numbers_of_any_numeric_type():
+    # numpy scalars, 0-d arrays and Decimals are numbers: stored as plain floats and ints
+    from decimal import Decimal
+
+    from efam_mujoco import load_muscle
+
+    fam1 = load_muscle("FAM1")
+    section = arm.SectionSpec((fam1,) * 3, radius_m=np.array(0.02), disks=np.int64(4),
+                              angles_deg=np.array([0.0, 120.0, 240.0]), end_mass_kg=Decimal("0.01"))  # fmt: skip
+    assert section.radius_m == 0.02 and type(section.radius_m) is float and section.disks == 4
+    assert section.angles_deg == (0.0, 120.0, 240.0)

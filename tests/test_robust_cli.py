@@ -813,3 +813,20 @@ def test_a_control_character_in_a_file_name_reaches_the_terminal_escaped(folder,
     name = "\x1b[31mred.csv"
     err = run_bad([*verb, name], folder, capsys, r"\\x1b\[31mred\.csv")
     assert "\x1b" not in err
+
+
+def test_an_unrecognised_argument_with_an_escape_sequence_is_shown_escaped(folder, capsys):
+    err = run_bad(["muscle", "FAM1", "\x1b[31mX"], folder, capsys, r"unrecognized arguments: \\x1b\[31mX")
+    assert "\x1b" not in err
+
+
+def test_a_message_keeps_spaces_and_accents_and_escapes_only_control_characters(folder, capsys):
+    # two spaces in a name are part of it, a no-break space and an accent are printable
+    err = run_bad(["view", "my  r\u00e9c\u00a0 file.xml"], folder, capsys, "my  r\u00e9c\u00a0 file\\.xml")
+    assert "\\u" not in err and "\\x" not in err
+
+
+def test_a_small_pressure_flag_is_warned_about_once_in_the_flags_unit(folder, capsys):
+    # 0.5 kPa: one warning in kPa; the Pa-level check inside must not ask "did you mean 500 kPa?"
+    code, out, err = run_cli(["muscle", "FAM1", "--pressures-kPa", "0.5"], folder, capsys)
+    assert code == 0 and err.count("warning") == 1 and "below 1 kPa" in err and "did you mean" not in err

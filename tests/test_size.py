@@ -80,6 +80,7 @@ def test_bad_catalogue_names_the_entry_and_key(tmp_path):
     [("sleeves", "\x1b[31mred"), ("sleeves", ""), ("sleeves", "   "), ("sleeves", 7), ("tubings", "a\nb")],
 )
 def test_catalogue_names_must_be_visible_text(tmp_path, key, name):
+    # a no-break space is visible text (tested below); an escape, a newline or nothing is not
     doc = json.loads(resources.files("efam_mujoco.size").joinpath("catalogue.json").read_text())
     doc[key][1]["name"] = name
     path = tmp_path / "cat.json"
@@ -394,3 +395,15 @@ def test_very_long_muscle_is_reported_not_crashed(capsys):
         "-> not checked: the free or loaded rig did not come to rest" in captured.out
         or "meets the request" in captured.out
     )
+
+
+def test_a_catalogue_name_with_a_no_break_space_is_read():
+    doc = json.loads(resources.files("efam_mujoco.size").joinpath("catalogue.json").read_text())
+    doc["sleeves"][1]["name"] = "PET\u00a01/8 in"
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "cat.json"
+        path.write_text(json.dumps(doc))
+        assert any(s.name == "PET\u00a01/8 in" for s in load_catalogue(path).sleeves)

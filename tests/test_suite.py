@@ -59,6 +59,12 @@ def test_load_refuses_a_time_limit_that_is_not_a_positive_length(time_limit):
         suite.load("bundle", "reach", task_kwargs={"time_limit": time_limit})
 
 
+def test_a_time_limit_of_any_numeric_type_is_read():
+    # a numpy scalar or a 0-d array is one number (they loaded before the check came)
+    for limit in (np.float32(2.0), np.array(2.0), np.int64(2)):
+        assert suite.load("bundle", "reach", task_kwargs={"time_limit": limit}).reset().first()
+
+
 def test_an_infinite_time_limit_is_dm_controls_no_limit():
     env = suite.load("bundle", "reach", task_kwargs={"time_limit": float("inf")})
     assert env.reset().first()

@@ -62,3 +62,9 @@ def test_adapter_refuses_an_image_size_without_pixels():
     for size in [(0, 0), (-240, 320), (240,), "240x320"]:
         with pytest.raises(ValueError, match=r"size"):
             SuiteEnv("bundle", "reach", render_mode="rgb_array", size=size)
+
+
+def test_adapter_takes_an_image_size_as_an_array():
+    env = SuiteEnv("bundle", "reach", render_mode="rgb_array", size=np.array([48, 64]))
+    env.reset(seed=0)
+    assert env.render().shape == (48, 64, 3)

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,10 +45,17 @@ def default_radius(muscles: tuple[Muscle, ...], clearance: float = DEFAULT_CLEAR
 
 def _finite(value, key: str) -> float:
     """``value`` as a float, refused (ValueError naming ``section: key``) unless it is a finite real
-    number: a NaN angle built an arm with a muscle nowhere, a text radius ended in a TypeError."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+    number (a numpy scalar, a 0-d array or a Decimal is one; a bool or a text is not): a NaN angle
+    built an arm with a muscle nowhere, a text radius ended in a TypeError."""
+    try:
+        if isinstance(value, (bool, str, bytes)):
+            raise TypeError
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        number = math.nan
+    if not math.isfinite(number):
         raise ValueError(f"section: {key} must be a finite number, got {value!r}")
-    return float(value)
+    return number
 
 
 @dataclass(frozen=True)
@@ -90,7 +96,8 @@ class SectionSpec:
             object.__setattr__(self, "radius_m", default_radius(muscles))
         if not (_finite(self.radius_m, "radius_m") > 0):
             raise ValueError(f"section: radius_m must be positive, got {self.radius_m}")
-        if isinstance(self.disks, bool) or int(_finite(self.disks, "disks")) != self.disks or self.disks < 1:
+        object.__setattr__(self, "radius_m", _finite(self.radius_m, "radius_m"))
+        if int(_finite(self.disks, "disks")) != _finite(self.disks, "disks") or self.disks < 1:
             raise ValueError(f"section: disks must be a positive integer, got {self.disks}")
         object.__setattr__(self, "disks", int(self.disks))
         for key in ("end_mass_kg", "body_mass_kg", "plate_mass_kg", "disk_mass_kg"):

@@ -432,18 +432,22 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     p_none = raw.get("none", 0.0)
     probs = {"none": p_none * q0}
     effects = {h: p for h, p in raw.items() if h != "none"}
-    q_of = {h: named_physics_probability(excess_cut, dd_gain, cal, h) for h in effects}
+    # the map was fitted on the raw winner's measurements and term (what it says is "the best
+    # term is the physics"); one value for every effect, so that the map never reorders the
+    # bootstrap's shares: another term's offset read with the winner's excess cut would
+    # overstate a term that explains less (a softening with a quarter of the draws overtook a
+    # braid stretch with three quarters)
+    best_effect = max(effects, key=effects.get) if effects else None
+    q = named_physics_probability(excess_cut, dd_gain, cal, best_effect)
     for h, p in effects.items():
-        probs[h] = p * q_of[h]
-    probs[OUTSIDE] = sum(p * (1.0 - q_of[h]) for h, p in effects.items()) + p_none * (1.0 - q0)
+        probs[h] = p * q
+    probs[OUTSIDE] = sum(effects.values()) * (1.0 - q) + p_none * (1.0 - q0)
     total = sum(probs.values()) or 1.0
     probs = {h: p / total for h, p in probs.items()}
     # 'outside the library' is an answer, or a contender, only where the data support it on top
     # of the library's winner (the best effect, or none when the model alone predicts best);
     # elsewhere its share is the calibrated doubt about the name, reported as 'unresolved'
     library_top = max(raw, key=raw.get) if raw else "none"
-    best_effect = max(effects, key=effects.get) if effects else None
-    q = named_physics_probability(excess_cut, dd_gain, cal, best_effect)
     outside_ok = support_none if library_top == "none" else support
     if not outside_ok:
         probs[UNRESOLVED] = probs.pop(OUTSIDE)

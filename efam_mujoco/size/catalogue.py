@@ -9,6 +9,7 @@ docs/sizing.md. A user can pass their own file with the same layout (``efam size
 from __future__ import annotations
 
 import math
+import unicodedata
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -223,7 +224,10 @@ def _entries(doc: dict, key: str, label: str) -> list:
 
 def _where(label: str, key: str, i: int, entry: dict) -> str:
     name = entry.get("name")
-    shown = isinstance(name, str) and name.strip() and name.isprintable()  # else _name refuses it
+    # else _name refuses it (a control or format character, Unicode category C; a no-break space is fine)
+    shown = (
+        isinstance(name, str) and name.strip() and not any(unicodedata.category(c)[0] == "C" for c in name)
+    )
     return f"{label}: {key}[{i}]" + (f" ('{name}')" if shown else "")
 
 
@@ -234,7 +238,7 @@ def _name(entry: dict, where: str) -> str:
     if "name" not in entry:
         return where
     name = entry["name"]
-    if not isinstance(name, str) or not name.strip() or not name.isprintable():
+    if not isinstance(name, str) or not name.strip() or any(unicodedata.category(c)[0] == "C" for c in name):
         raise CatalogueError(
             f"{where}: key 'name' must be non-blank text without control characters, got {name!r}"
         )

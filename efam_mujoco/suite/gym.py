@@ -45,7 +45,7 @@ class SuiteEnv(gymnasium.Env):
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if not isinstance(size, (tuple, list)) or len(size) != 2:
+        if isinstance(size, (str, bytes)) or np.ndim(size) != 1 or len(size) != 2:
             raise ValueError(f"size must be (height, width) in pixels, got {size!r}")
         common.check_image_size(*size, "size (height, width)")  # now, not at the first render()
         self.domain, self.task = domain, task

@@ -9,7 +9,6 @@ rest under admissible pressures, so every episode is solvable.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -350,11 +349,17 @@ class Domain:
         time_limit = self.time_limit_s if time_limit is None else time_limit
         # refused before the arm is built: dm_control would end a non-positive episode at its
         # first step, and a NaN one never; inf is dm_control's "no limit" and stays allowed
-        if (isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real)
-                or math.isnan(time_limit) or time_limit <= 0):  # fmt: skip
+        try:
+            if isinstance(time_limit, (bool, str, bytes)):
+                raise TypeError
+            seconds = float(time_limit)  # a numpy scalar or 0-d array is one number too
+        except (TypeError, ValueError, OverflowError):
+            seconds = math.nan
+        if math.isnan(seconds) or seconds <= 0:
             raise ValueError(
                 f"time_limit must be a positive episode length in s (inf: no limit), got {time_limit!r}"
             )
+        time_limit = seconds
         spec = self.make_arm(**(arm_options or {}))
         radius = {"target_radius_m": self.target_radius_m}
         task_class, scene, task_options = {
