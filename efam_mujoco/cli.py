@@ -25,9 +25,10 @@ import os
 import re
 import signal
 import sys
-import unicodedata
 import warnings
 from pathlib import Path
+
+from .units import visible
 
 # Modules exposing ``register_cli(subparsers)``; each adds one subcommand.
 COMMAND_MODULES = (
@@ -70,7 +71,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
     def error(self, message):
         """Print ``<prog>: error: <message> (<prog> --help)`` on standard error and exit 2."""
-        self.exit(2, f"{self.prog}: error: {_visible(message)} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {visible(message)} (see {self.prog} --help)\n")
 
 
 class _ExactSubparsers:
@@ -295,15 +296,7 @@ def _message(err: BaseException) -> str:
         text = f"{err.filename}: {err.strerror}"
     else:
         text = " ".join(line.strip() for line in str(err).splitlines() if line.strip())
-    return _visible(text) or type(err).__name__
-
-
-def _visible(text: str) -> str:
-    """``text`` with every control or format character (Unicode category C: an escape, a bell,
-    a newline inside a name) written as its escape; spaces, accents and symbols stay as they are."""
-    return "".join(
-        c.encode("unicode_escape").decode("ascii") if unicodedata.category(c)[0] == "C" else c for c in text
-    )
+    return visible(text) or type(err).__name__
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None, *, command="efam") -> None:

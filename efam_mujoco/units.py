@@ -9,6 +9,7 @@ know instead of guessing.
 from __future__ import annotations
 
 import math
+import unicodedata
 
 # factor that converts a value in the suffix unit into the SI unit of its quantity
 PRESSURE = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "psi": 6894.757293168361}
@@ -147,3 +148,26 @@ def check_within(values, low: float, high: float, *, what: str, unit: str = "", 
             f"{what}: {first * scale:g}{u} is outside [{low * scale:g}, {high * scale:g}]{u} "
             "(it would be clamped silently)"
         )
+
+
+def is_control(character: str) -> bool:
+    """A control or format character (Unicode category C: an escape, a bell, a newline); a
+    no-break space, an accent or a symbol is not."""
+    return unicodedata.category(character)[0] == "C"
+
+
+def visible(text: str) -> str:
+    """``text`` with every control or format character written as its escape (a terminal escape
+    sequence in a file name never reaches the screen as it is); the rest stays as written."""
+    return "".join(c.encode("unicode_escape").decode("ascii") if is_control(c) else c for c in text)
+
+
+def as_float(value) -> float:
+    """``value`` as one float (a numpy scalar, a 0-d array, a Decimal are numbers), NaN when it
+    is not a number (a bool or a text is not one, though Python would convert them)."""
+    try:
+        if isinstance(value, (bool, str, bytes)):
+            raise TypeError
+        return float(value)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan

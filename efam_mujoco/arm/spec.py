@@ -10,6 +10,7 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..musclefile import load_muscle
+from ..units import as_float
 from .masses import muscle_part_masses
 
 PSI = 6894.757293168361
@@ -47,12 +48,7 @@ def _finite(value, key: str) -> float:
     """``value`` as a float, refused (ValueError naming ``section: key``) unless it is a finite real
     number (a numpy scalar, a 0-d array or a Decimal is one; a bool or a text is not): a NaN angle
     built an arm with a muscle nowhere, a text radius ended in a TypeError."""
-    try:
-        if isinstance(value, (bool, str, bytes)):
-            raise TypeError
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        number = math.nan
+    number = as_float(value)
     if not math.isfinite(number):
         raise ValueError(f"section: {key} must be a finite number, got {value!r}")
     return number

@@ -9,7 +9,6 @@ docs/sizing.md. A user can pass their own file with the same layout (``efam size
 from __future__ import annotations
 
 import math
-import unicodedata
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -21,7 +20,7 @@ from ..musclefile import (
     parse_json_text,
     read_small_file,
 )
-from ..units import UnitError, read_quantity, split_unit
+from ..units import UnitError, is_control, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.catalogue/1"
 
@@ -225,9 +224,7 @@ def _entries(doc: dict, key: str, label: str) -> list:
 def _where(label: str, key: str, i: int, entry: dict) -> str:
     name = entry.get("name")
     # else _name refuses it (a control or format character, Unicode category C; a no-break space is fine)
-    shown = (
-        isinstance(name, str) and name.strip() and not any(unicodedata.category(c)[0] == "C" for c in name)
-    )
+    shown = isinstance(name, str) and name.strip() and not any(map(is_control, name))
     return f"{label}: {key}[{i}]" + (f" ('{name}')" if shown else "")
 
 
@@ -238,7 +235,7 @@ def _name(entry: dict, where: str) -> str:
     if "name" not in entry:
         return where
     name = entry["name"]
-    if not isinstance(name, str) or not name.strip() or any(unicodedata.category(c)[0] == "C" for c in name):
+    if not isinstance(name, str) or not name.strip() or any(map(is_control, name)):
         raise CatalogueError(
             f"{where}: key 'name' must be non-blank text without control characters, got {name!r}"
         )

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from dm_control.utils import containers
 
+from ..units import as_float
 from . import arm_glue, common, workspace
 
 # ------------------------------------------------------------------------------------- reach
@@ -349,12 +350,7 @@ class Domain:
         time_limit = self.time_limit_s if time_limit is None else time_limit
         # refused before the arm is built: dm_control would end a non-positive episode at its
         # first step, and a NaN one never; inf is dm_control's "no limit" and stays allowed
-        try:
-            if isinstance(time_limit, (bool, str, bytes)):
-                raise TypeError
-            seconds = float(time_limit)  # a numpy scalar or 0-d array is one number too
-        except (TypeError, ValueError, OverflowError):
-            seconds = math.nan
+        seconds = as_float(time_limit)  # a numpy scalar or 0-d array is one number too
         if math.isnan(seconds) or seconds <= 0:
             raise ValueError(
                 f"time_limit must be a positive episode length in s (inf: no limit), got {time_limit!r}"
