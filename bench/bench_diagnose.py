@@ -41,7 +41,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from efam_mujoco.diagnose import diagnose  # noqa: E402
+from efam_mujoco.diagnose import design, diagnose  # noqa: E402
 from efam_mujoco.diagnose import virtual_bench as V  # noqa: E402
 from efam_mujoco.diagnose.confidence import (  # noqa: E402
     CALIBRATION,
@@ -49,12 +49,13 @@ from efam_mujoco.diagnose.confidence import (  # noqa: E402
     OUTSIDE,
     Calibration,
     best_effect_z,
+    bootstrap_blocks,
     insample_supported,
     none_features,
     physics_features,
     verdict,
 )
-from efam_mujoco.diagnose.design import experiment, stroke_speed  # noqa: E402
+from efam_mujoco.diagnose.design import FOCUSED, experiment, stroke_speed  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
 from efam_mujoco.progress import progress  # noqa: E402
@@ -121,6 +122,36 @@ def _verdict_inputs(d) -> dict:
             "delta_bic": {c["name"]: c["delta_bic"] for c in d.candidates}}  # fmt: skip
 
 
+def try_recommendation(case, recording, nominal, d, seed: int) -> dict:
+    """Run the recommended next experiment of diagnosis ``d`` with the concealed truth, diagnose
+    both recordings together, and judge the joined answer on the joined data."""
+    kind = case.kind
+    rec = d.next_experiment["recommended"]
+    e = experiment(rec["name"], d.ctx, stroke_speed(d.ctx, d.labels), rec.get("set_points"))
+    extra = V.run_plan(case, e.t, e.L, e.P, min(case.sample_hz, 100.0), seed)
+    d2 = diagnose([recording, extra], nominal, next_experiment=False)
+    # the joined answer is judged on the joined data: the new test can make an effect show
+    # that the first recording hid (or an effect that showed is still there)
+    shows_joined, left_joined = (
+        V.identifiable(case, recording, nominal, more=(extra.meta["noise_free"],))
+        if case.effects
+        else (True, 0.0)
+    )
+    out = {
+        "experiment": rec["name"], "predicted_difference_rms_N": rec["predicted_difference_rms_N"],
+        "ratio_to_noise": rec["ratio_to_noise"], "expected_z": rec.get("expected_z"),
+        "blocks": rec.get("blocks"), "duration_s": rec.get("duration_s"), "answer": d2.verdict.answer,
+        "probability": d2.verdict.probability, "confident": d2.verdict.confident,
+        "ambiguous_after": d2.verdict.ambiguous,
+        "correct": correct(d2.verdict.answer, kind, case.names, shows_joined),
+        "shows_joined": shows_joined, "truth_left_joined_N": left_joined,
+        # the joined verdict's inputs, so that a calibration can weigh the joined diagnoses too
+        **_verdict_inputs(d2),
+    }  # fmt: skip
+    out["resolved"] = bool(out["confident"] and out["correct"])
+    return out
+
+
 def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
     seed, family, kind = spec
     case = V.draw_case(seed, family, kind)
@@ -149,34 +180,28 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         "structure": d.structure, "samples": d.n_samples, "seconds": seconds,
         "tentative": v.tentative, "separation_z": v.separation_z, "outside_supported": v.outside_supported,
         "dd_raw_gain": d.correction.raw_gain,
-        "next": None,
+        "next": None, "next_without_optimal": None,
     }  # fmt: skip
     # the next experiment is tried on every ambiguous case, whatever its family: the truth model
     # runs the recommended protocol with the concealed effect, and both recordings are diagnosed
     if try_next and v.ambiguous and d.next_experiment and d.next_experiment.get("recommended"):
-        rec = d.next_experiment["recommended"]
-        e = experiment(rec["name"], d.ctx, stroke_speed(d.ctx, d.labels))
-        extra = V.run_plan(case, e.t, e.L, e.P, min(case.sample_hz, 100.0), seed)
-        d2 = diagnose([recording, extra], nominal, next_experiment=False)
-        # the joined answer is judged on the joined data: the new test can make an effect show
-        # that the first recording hid (or an effect that showed is still there)
-        shows_joined, left_joined = (
-            V.identifiable(case, recording, nominal, more=(extra.meta["noise_free"],))
-            if case.effects
-            else (True, 0.0)
-        )
-        row["next"] = {
-            "experiment": rec["name"], "predicted_difference_rms_N": rec["predicted_difference_rms_N"],
-            "ratio_to_noise": rec["ratio_to_noise"], "expected_z": rec.get("expected_z"),
-            "blocks": rec.get("blocks"), "duration_s": rec.get("duration_s"), "answer": d2.verdict.answer,
-            "probability": d2.verdict.probability, "confident": d2.verdict.confident,
-            "ambiguous_after": d2.verdict.ambiguous,
-            "correct": correct(d2.verdict.answer, kind, case.names, shows_joined),
-            "shows_joined": shows_joined, "truth_left_joined_N": left_joined,
-            # the joined verdict's inputs, so that a calibration can weigh the joined diagnoses too
-            **_verdict_inputs(d2),
-        }  # fmt: skip
-        row["next"]["resolved"] = bool(row["next"]["confident"] and row["next"]["correct"])
+        row["next"] = try_recommendation(case, recording, nominal, d, seed)
+        # side by side in the same run: what the recommendation would have been, and done,
+        # without the optimal-design candidate (it can also change which test is paired or
+        # repeated, so the design is always made again; the same test is not run twice)
+        design.OFFER_OPTIMAL = False
+        try:
+            d_alt = diagnose([recording], nominal)
+        finally:
+            design.OFFER_OPTIMAL = True
+        alt = (d_alt.next_experiment or {}).get("recommended")
+        if alt and (alt["name"], alt["duration_s"]) == (
+            d.next_experiment["recommended"]["name"],
+            row["next"]["duration_s"],
+        ):
+            row["next_without_optimal"] = row["next"]
+        elif alt:
+            row["next_without_optimal"] = try_recommendation(case, recording, nominal, d_alt, seed)
     return row
 
 
@@ -232,6 +257,11 @@ def summarise(rows: list[dict]) -> dict:
             "outside_wrong_name_p08": _frac(r["answer"] not in ("none", OUTSIDE) and r["probability"] >= 0.8 for r in outside),
             "outside_dd_improves": _frac(r["dd_heldout_after_N"] < 0.98 * r["dd_heldout_before_N"] for r in outside),
             "next_tried": len(amb), "next_resolved": _frac(r["next"]["resolved"] for r in amb),
+            # beside it: the same cases with the recommendation made without the optimal-design
+            # candidate (run side by side; rows from before it was recorded give None)
+            "next_resolved_without_optimal": _frac(r["next_without_optimal"]["resolved"] for r in amb)
+            if all(r.get("next_without_optimal") for r in amb) else None,
+            "next_optimal_recommended": sum(FOCUSED in r["next"]["experiment"] for r in amb),
             # beside it: the cases whose recommendation the design expected to decide (z >= 1;
             # below, the report says it is not expected to), and how many of them it resolved
             "next_expected_to_decide": len(expected),
@@ -254,7 +284,8 @@ def summarise(rows: list[dict]) -> dict:
 
 def print_summary(s: dict) -> None:
     keys = ("n", "top1_confident", "confident", "false_alarm", "ambiguous_in_library", "tentative_in_library", "ece",
-            "median_heldout_reduction", "outside_wrong_name_p08", "outside_dd_improves", "next_tried", "next_resolved")  # fmt: skip
+            "median_heldout_reduction", "outside_wrong_name_p08", "outside_dd_improves", "next_tried", "next_resolved",
+            "next_resolved_without_optimal")  # fmt: skip
     print(f"\n{'family':12s}" + "".join(f"{k[:14]:>15s}" for k in keys))
     for fam, b in s["by_family"].items():
         cells = []
@@ -381,6 +412,18 @@ def stored_rows(paths: list[str], cases: list[tuple[int, str, str]]) -> list[dic
             f"{len(missing)} calibration cases are not in the stored rows (first: seed {missing[0]})"
         )
     return out
+
+
+def with_current_bootstrap(row: dict) -> dict:
+    """``row`` with its raw win fractions drawn again from its stored per-block evidence under
+    this code's bootstrap (its tie rule, its concentration) and the in-sample check: stored rows
+    then calibrate the bootstrap as it now decides. A row without the evidence is kept as it is."""
+    sse = (row.get("evidence") or {}).get("block_sse")
+    if not sse:
+        return row
+    raw = bootstrap_blocks({h: np.asarray(v, float) for h, v in sse.items()},
+                           concentration=CALIBRATION.concentration, tie_margin=CALIBRATION.tie_margin)  # fmt: skip
+    return row | {"raw": insample_supported(raw, row.get("delta_bic"))}
 
 
 def rescore(rows: list[dict], cal: Calibration) -> list[dict]:
@@ -562,7 +605,7 @@ def main(argv=None) -> int:
     if args.calibrate:
         cases = calibration_plan()
         if args.calibrate_rows:
-            rows = stored_rows(args.calibrate_rows, cases)
+            rows = [with_current_bootstrap(r) for r in stored_rows(args.calibrate_rows, cases)]
         else:
             rows = run(cases, args.jobs, try_next=False)
         cal = fit_calibration(rows)
@@ -600,6 +643,9 @@ def _line(row: dict, k: int, n: int) -> None:
     nxt = ""
     if row["next"]:
         nxt = f" next {row['next']['experiment']} -> {row['next']['answer']} ({'resolved' if row['next']['resolved'] else 'not resolved'})"
+        alt = row.get("next_without_optimal")
+        if alt and alt is not row["next"] and alt != row["next"]:
+            nxt += f"; without the optimal design {alt['experiment']} -> {alt['answer']} ({'resolved' if alt['resolved'] else 'not resolved'})"
     print(
         f"[{k:3d}/{n}] {mark} {flag} {row['family']:10s} {row['kind']:7s} {'+'.join(row['truth']) or 'none':32s} -> "
         f"{row['answer']:16s} p={row['probability']:.2f} held-out {row['heldout_rms_before_N']:.2f}->{row['heldout_rms_after_N']:.2f} N "

@@ -157,6 +157,12 @@ def test_bootstrap_is_sure_of_a_clear_winner_and_splits_a_tie():
     assert clear["friction"] > 0.99
     tie = bootstrap({"none": noise * 3, "a": noise, "b": noise * 1.001}, blocks, tie_margin=0.02)
     assert tie["a"] == pytest.approx(0.5, abs=0.01) and tie["b"] == pytest.approx(0.5, abs=0.01)
+    # an effect 4.5 % under none's held-out RMS, past the 3 % relevance margin: no tie with none
+    # (a tie there too split such an effect 50:50 however many blocks the data had)
+    past = bootstrap({"none": noise, "friction": noise * 0.955}, blocks, tie_margin=0.02)
+    assert past["friction"] > 0.99
+    within = bootstrap({"none": noise, "friction": noise * 0.975}, blocks, tie_margin=0.02)
+    assert within["none"] > 0.99  # inside the relevance margin, none
     v = verdict(tie, excess_cut=0.9, dd_gain=0.0, n_blocks=30)
     assert v.ambiguous and set(v.contenders) == {"a", "b"}
     assert "cannot separate" in v.words()
@@ -397,7 +403,8 @@ def test_a_pair_the_bootstrap_tells_apart_is_not_called_ambiguous():
                 block_sse=sse, dd_z=0.0, dd_z_none=0.0, excess_left=0.1)  # fmt: skip
     assert v.answer == "drift" and not v.confident  # the map doubts the name ...
     assert not v.ambiguous and v.tentative  # ... not the pair
-    # the same pair with equal errors in every block: the bootstrap splits them, ambiguous
+    # the same pair with errors within 1 % in every block: inside the tie margin between two
+    # effects, the bootstrap splits them, ambiguous
     even = {"none": a * 1.5, "drift": a, "viscoelasticity": a * (1 + 0.01 * rng.normal(size=40))}
     assert 0.2 < head_to_head(even, "drift", "viscoelasticity") < 0.8
     v = verdict({"drift": 0.55, "viscoelasticity": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40,
@@ -1086,3 +1093,69 @@ def test_a_nanosecond_time_base_does_not_ask_for_a_huge_smoothing_window():
 
     t = np.arange(3000) * 1e-9
     assert segment._window(t) <= len(t)
+
+
+def test_t_optimal_weights_give_the_textbook_design_for_telling_a_curve_from_a_line():
+    # the classic case (Atkinson & Fedorov 1975; Atkinson, Donev & Tobias, Optimum Experimental
+    # Designs, ch. 20): the truth quadratic, the rival a straight line on [-1, 1]; what no line
+    # takes up is x^2 less its projection, and the T-optimal design puts weights 1/4, 1/2, 1/4 at
+    # -1, 0, 1 (the residual +-1/2 there, the criterion 1/4). Written without the package.
+    from efam_mujoco.diagnose.design import t_optimal_weights
+
+    x = np.linspace(-1.0, 1.0, 41)
+    w = t_optimal_weights(x**2, [np.column_stack([np.ones_like(x), x])], iterations=2000)
+    near = lambda c: w[np.abs(x - c) < 0.06].sum()  # noqa: E731
+    assert near(-1.0) == pytest.approx(0.25, abs=0.02)
+    assert near(0.0) == pytest.approx(0.5, abs=0.02)
+    assert near(1.0) == pytest.approx(0.25, abs=0.02)
+    # the criterion at these weights: the weighted least-squares residual of x^2 on (1, x)
+    X = np.column_stack([np.ones_like(x), x]) * np.sqrt(w)[:, None]
+    coef, *_ = np.linalg.lstsq(X, x**2 * np.sqrt(w), rcond=None)
+    r = x**2 - np.column_stack([np.ones_like(x), x]) @ coef
+    assert float(np.sum(w * r * r)) == pytest.approx(0.25, abs=0.01)
+    # two rivals (a line; a line plus x^4): the weaker way round decides. The design for the line
+    # alone leaves the second rival almost nothing to miss (x^2 ~ a + b x^4 at -1, 0, 1); the
+    # maximin design keeps what the harder rival cannot take up
+    from efam_mujoco.diagnose.design import t_criterion
+
+    line = np.column_stack([np.ones_like(x), x])
+    quartic = np.column_stack([np.ones_like(x), x, x**4])
+    both = t_optimal_weights(x**2, [line, quartic], iterations=2000)
+    for_line = t_optimal_weights(x**2, [line], iterations=2000)
+    for_quartic = t_optimal_weights(x**2, [quartic], iterations=2000)
+    assert t_criterion(x**2, [line, quartic], for_line) < 1e-3
+    assert t_criterion(x**2, [line, quartic], both) >= 0.99 * t_criterion(x**2, [quartic], for_quartic) > 0.01
+
+
+def test_the_optimal_design_holds_where_a_static_term_shows_and_travels_as_set_points():
+    # a braid stretch against the model alone: a static error growing with pressure, which a
+    # re-fit of the muscle's own parameters largely takes up on strokes at one pressure. The
+    # optimal-design candidate holds at set points inside the recorded ranges, leaves at least as
+    # much that no re-fit takes up as any fixed candidate, and its set points (which no name
+    # alone rebuilds) travel with the recommendation
+    from efam_mujoco.diagnose.design import FOCUSED, experiment
+
+    muscle, ctx, absorb = _sine_strokes_at_300_kPa()
+    braid = EffectModel(muscle, [("braid_compliance", {"b1_per_MPa": 0.05, "b2_per_MPa2": 0.0})])
+    plan = recommend(
+        {"braid_compliance": braid, "none": EffectModel(muscle, [])}, ctx, 0.01, 0.3, absorb=absorb
+    )
+    scored = {c["name"]: c for c in plan["candidates"]}
+    assert FOCUSED in scored
+    fixed = max(c["unabsorbed_rms_N"] for n, c in scored.items() if n != FOCUSED)
+    assert scored[FOCUSED]["unabsorbed_rms_N"] >= fixed
+    best = plan["recommended"]
+    e = experiment(best["name"], ctx, 0.01, best["set_points"])
+    assert e.t[-1] == pytest.approx(best["duration_s"], rel=1e-9)
+    assert e.L.min() >= np.percentile(ctx.L, 1) - 1e-9 and e.L.max() <= np.percentile(ctx.L, 99) + 1e-9
+    assert e.P.max() <= max(np.percentile(ctx.P, 99), 50e3) + 1e-6
+    with pytest.raises(ValueError, match="set_points"):
+        experiment(FOCUSED, ctx, 0.01)
+    # set points that cannot be a test are refused, naming what is wrong
+    sp = best["set_points"]
+    with pytest.raises(ValueError, match="pressure_Pa"):
+        experiment(best["name"], ctx, 0.01, dict(sp, pressure_Pa=[float("nan")] * len(sp["time_s"])))
+    with pytest.raises(ValueError, match="backwards"):
+        experiment(best["name"], ctx, 0.01, dict(sp, time_s=sp["time_s"][::-1]))
+    with pytest.raises(ValueError, match="differ in length"):
+        experiment(best["name"], ctx, 0.01, dict(sp, length_m=sp["length_m"][:-1]))

@@ -23,6 +23,13 @@ A test that never moved the length (isometric) gets the pressure-only candidates
 would ask both models where no data constrained them.
 * ``idle``: five minutes at a middle pressure between two strokes (drift).
 
+One more is built for the pair itself, ``holds_where_apart`` (``focused``): an optimal design
+for telling two models apart. Both are simulated on a survey of static set points inside the
+recorded ranges, and the T-optimal weights (``t_optimal_weights``; Atkinson & Fedorov 1975)
+pick the points where the difference that no re-fit of the weaker way round takes up is
+largest; the test holds there in proportion to the weights. Its set points travel with the
+recommendation (no name alone rebuilds it).
+
 What of the difference between the two models' predicted forces the diagnosis could not take
 up another way once the new test is added is the difference less its least-squares projection on
 a constant (a load-cell zero), on the model's own parameter corrections linearised over the
@@ -80,6 +87,18 @@ TIMES = " x"
 #: the most times a test is repeated to reach ``Z_DECIDE``, and the longest the whole may last (s)
 MAX_REPEATS = 4
 MAX_TEST_S = 900.0
+#: the optimal-design candidate: a grid of static set points inside the recorded ranges (lengths x
+#: pressures), each held ``GRID_HOLD_S`` in a survey the two models are simulated on once; the
+#: chosen points are then held ``FOCUS_S`` in all, in proportion to their design weights
+GRID_LENGTHS = 5
+GRID_PRESSURES = 6
+GRID_HOLD_S = 4.0
+FOCUS_S = 90.0
+#: the name of the optimal-design candidate (its set points travel with the recommendation)
+FOCUSED = "holds_where_apart"
+#: whether the optimal-design candidate is offered (the benchmark turns it off to measure, side
+#: by side, what it adds)
+OFFER_OPTIMAL = True
 
 
 @dataclass
@@ -204,6 +223,144 @@ def candidates(ctx: Context, speed_m_per_s: float) -> list[Experiment]:
     p.go(3)
     out.append(p.done("idle", f"five minutes at {P_top / 2e3:.0f} kPa between two strokes"))
     return out
+
+
+def survey(ctx: Context, speed_m_per_s: float) -> tuple[Experiment, np.ndarray, np.ndarray]:
+    """A tour of static set points inside the recorded ranges: at each of ``GRID_LENGTHS`` lengths
+    (one when the test never moved the length), a pressure staircase of ``GRID_PRESSURES`` steps
+    (``GRID_LENGTHS`` x ``GRID_PRESSURES`` at the one length of an isometric test) to the top
+    recorded pressure, each held ``GRID_HOLD_S``, then vented. Returns the tour, the
+    (length m, pressure Pa) of every point, and the point index of every sample at
+    ``SAMPLE_HZ`` in the settled second half of its hold (-1 elsewhere)."""
+    L_lo, L_hi = float(np.percentile(ctx.L, 1)), float(np.percentile(ctx.L, 99))
+    P_top = max(float(np.percentile(ctx.P, 99)), 50e3)
+    isometric = L_hi - L_lo < 0.05 * ctx.muscle.rest_length_m
+    lengths = [L_lo] if isometric else list(np.linspace(L_lo, L_hi, GRID_LENGTHS))
+    # at one length the pressure alone spans the survey: as many points as the grid has
+    levels = GRID_LENGTHS * GRID_PRESSURES if isometric else GRID_PRESSURES
+    v = max(speed_m_per_s, 1e-3)
+    p = _Prog(L_lo)
+    p.go(2)
+    points, windows = [], []
+    for L in lengths:
+        p.go(abs(L - p.L[-1]) / v, L=L)
+        for k in range(1, levels + 1):
+            p.go(0.001, P=P_top * k / levels)
+            p.go(GRID_HOLD_S)
+            points.append((L, P_top * k / levels))
+            windows.append((p.t[-1] - GRID_HOLD_S / 2, p.t[-1]))
+        p.go(0.001, P=0.0)
+        p.go(2)
+    tour = p.done("survey", "static set points over the recorded lengths and pressures")
+    t = tour.sampled()[0]
+    where = np.full(len(t), -1)
+    for i, (t0, t1) in enumerate(windows):
+        where[(t >= t0) & (t < t1)] = i
+    return tour, np.array(points), where
+
+
+def t_optimal_weights(d: np.ndarray, ways: list[np.ndarray], iterations: int = 300) -> np.ndarray:
+    """Design weights over candidate points that maximise what the weaker way round cannot take
+    up: the T-optimal design for telling two models apart (Atkinson & Fedorov 1975), found by
+    the vertex-direction algorithm. ``d``: the models' force difference at each point (N);
+    ``ways``: for each way round, the columns a re-fit could move at each point (points x k).
+    Every step weighs least squares of ``d`` on the weaker way's columns with the current weights
+    and moves weight 1/(step + 2) towards the point its fit misses most."""
+    d = np.asarray(d, float)
+    if not np.all(np.isfinite(d)) or not all(np.all(np.isfinite(X)) for X in ways):
+        raise ValueError("t_optimal_weights: a non-finite difference or column")
+    n = len(d)
+    w = np.full(n, 1.0 / n)
+    scaled = [_informative(X) for X in ways]
+    for step in range(iterations):
+        worst, miss = math.inf, None
+        for X in scaled:
+            r = _weighted_residual(d, X, w)
+            value = float(np.sum(w * r * r))
+            if value < worst:
+                worst, miss = value, r * r
+        alpha = 1.0 / (step + 2)
+        w = (1.0 - alpha) * w
+        w[int(np.argmax(miss))] += alpha
+    return w
+
+
+def t_criterion(d: np.ndarray, ways: list[np.ndarray], w: np.ndarray) -> float:
+    """The T-criterion of weights ``w``: the weighted mean square of ``d`` that the weaker way
+    round's columns leave (what ``t_optimal_weights`` maximises)."""
+    return min(float(np.sum(w * _weighted_residual(d, _informative(X), w) ** 2)) for X in ways)
+
+
+def _informative(X: np.ndarray) -> np.ndarray:
+    """``X`` (points x k) without the columns at rounding level (a correction that moves nothing
+    at a static point; scaled to unit size it would let noise steer the design), each remaining
+    column scaled to unit RMS."""
+    X = np.asarray(X, float)
+    size = np.sqrt(np.mean(X * X, axis=0)) if X.size else np.zeros(X.shape[1])
+    keep = size > 1e-9 * max(float(size.max(initial=0.0)), 1e-300)
+    return X[:, keep] / size[keep]
+
+
+def _weighted_residual(d: np.ndarray, X: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``d`` less its weighted least-squares fit on the columns of ``X`` (weights ``w``)."""
+    if not X.shape[1]:
+        return d.copy()
+    sw = np.sqrt(w)
+    coef, *_ = np.linalg.lstsq(X * sw[:, None], d * sw, rcond=1e-10)
+    return d - X @ coef
+
+
+def focused(a: EffectModel, b: EffectModel, ctx: Context, speed_m_per_s: float, columns) -> Experiment | None:
+    """The optimal-design candidate: holds at the static set points where the two models differ
+    in a way no re-fit takes up (``t_optimal_weights`` over the ``survey`` points; ``columns(t,
+    L, P)`` gives, for each way round, the columns a re-fit could move), each held in proportion
+    to its weight, ``FOCUS_S`` in all, visited by length then pressure, vented before each change
+    of length as in the survey. None when a re-fit takes up the difference at every point."""
+    tour, points, where = survey(ctx, speed_m_per_s)
+    d, t, L, P = _difference(a, b, tour)
+    keep = where >= 0
+    n_pts = len(points)
+    count = np.bincount(where[keep], minlength=n_pts).astype(float)
+    if not np.any(np.abs(d[keep]) > 0) or np.any(count == 0):
+        return None
+
+    def settled(x):  # mean of each column over each point's settled samples (points x columns)
+        x = x.reshape(len(x), -1)[keep]
+        sums = [np.bincount(where[keep], weights=c, minlength=n_pts) for c in x.T]
+        return (np.stack(sums, axis=1) if sums else np.zeros((n_pts, 0))) / count[:, None]
+
+    ways = [np.column_stack([np.ones(n_pts), settled(np.asarray(c, float))]) for c in columns(t, L, P)]
+    gap = settled(d)[:, 0]
+    w = t_optimal_weights(gap, ways)
+    if t_criterion(gap, ways, w) <= 1e-6 * float(np.mean(gap * gap)):
+        return None  # a re-fit takes up the difference at every set point: nothing to hold for
+    chosen = [i for i in np.argsort(-w) if w[i] >= 0.02][:8]
+    if len(chosen) < 2:
+        return None
+    chosen.sort(key=lambda i: (points[i][0], points[i][1]))
+    share = w[chosen] / w[chosen].sum()
+    v = max(speed_m_per_s, 1e-3)
+    p = _Prog(float(np.percentile(ctx.L, 1)))
+    p.go(2)
+    said = []
+    for i, s in zip(chosen, share):
+        Li, Pi = (float(x) for x in points[i])
+        if Li != p.L[-1]:
+            # as in the survey: vented, then the new length, then up to the set point (a
+            # pressure-direction hysteresis sees each point approached as it was designed on)
+            p.go(0.001, P=0.0)
+            p.go(2)
+            p.go(abs(Li - p.L[-1]) / v, L=Li)
+        p.go(0.001, P=Pi)
+        p.go(max(2.0, FOCUS_S * s))
+        said.append(f"{Li * 1e3:.0f} mm/{Pi / 1e3:.0f} kPa {max(2.0, FOCUS_S * s):.0f} s")
+    p.go(0.001, P=0.0)
+    p.go(2)
+    return p.done(
+        FOCUSED,
+        "holds at the set points where the difference no re-fit takes up is largest (an optimal design; "
+        "the set points are in the JSON report): " + ", ".join(said),
+    )
 
 
 def _difference(a: EffectModel, b: EffectModel, experiment: Experiment):
@@ -353,8 +510,17 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
                 "blocks": int(len(way_gaps[weak])), "expected_z": zs[weak], "duration_s": float(e.t[-1]),
                 "repeats": 1}  # fmt: skip
 
+    def way_columns(t, L, P):  # what a re-fit could move over a test, each way round
+        model_cols = None if absorb is None else absorb(t, L, P)
+        return [np.column_stack([c for c in (model_cols, None if own is None else own(t, L, P)) if c is not None]
+                                or [np.zeros((len(t), 0))]) for own in own_columns]  # fmt: skip
+
     tests, scored = {}, []
-    for e in candidates(ctx, speed):
+    try:
+        optimal = focused(a, b, ctx, speed, way_columns) if OFFER_OPTIMAL else None
+    except ValueError:
+        optimal = None
+    for e in candidates(ctx, speed) + ([optimal] if optimal is not None else []):
         try:
             scored.append(score(e))
         except ValueError:
@@ -385,6 +551,13 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
             best = {**again, "repeats": times}
             if again["expected_z"] >= Z_DECIDE:
                 break
+    if best:
+        # the set points travel with the recommendation: the optimal-design holds are built from
+        # the two fitted models, and no name alone rebuilds them (``experiment`` takes these)
+        final = repeated(chosen, best["repeats"]) if best["repeats"] > 1 else chosen
+        best = dict(best)  # not the candidate's own entry: the set points are written once
+        best["set_points"] = {"time_s": final.t.tolist(), "length_m": final.L.tolist(),
+                              "pressure_Pa": final.P.tolist()}  # fmt: skip
     words = ""
     if best and best["ratio_to_noise"] < 1.0 and best["repeats"] == 1:
         words = (
@@ -431,9 +604,17 @@ def repeated(test: Experiment, times: int) -> Experiment:
                       out.L, out.P)  # fmt: skip
 
 
-def experiment(name: str, ctx: Context, speed: float) -> Experiment:
+def experiment(name: str, ctx: Context, speed: float, set_points: dict | None = None) -> Experiment:
     """The candidate experiment called ``name`` for these data; ``"a then b"``: the two run one
-    after the other; ``"<test> x3"``: the test run three times over."""
+    after the other; ``"<test> x3"``: the test run three times over. ``set_points``: the
+    recommendation's own (``time_s``, ``length_m``, ``pressure_Pa``), which any name may carry and
+    a test holding ``FOCUSED`` (built from the two fitted models) needs."""
+    if set_points is not None:
+        return Experiment(name, name, *_checked_set_points(name, set_points))
+    if FOCUSED in name:
+        raise ValueError(
+            f"'{name}' is built from the two fitted models: give the recommendation's set_points"
+        )
     head, times, count = name.rpartition(TIMES)
     if times and count.isdigit():
         return repeated(experiment(head, ctx, speed), int(count))
@@ -444,6 +625,30 @@ def experiment(name: str, ctx: Context, speed: float) -> Experiment:
         if e.name == name:
             return e
     raise ValueError(f"unknown experiment '{name}'")
+
+
+def _checked_set_points(name: str, set_points: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The (time s, length m, pressure Pa) arrays of a recommendation's ``set_points``, refused
+    with the key and the problem when they cannot be a test."""
+    out = []
+    for key in ("time_s", "length_m", "pressure_Pa"):
+        if key not in set_points:
+            raise ValueError(f"set points of '{name}': no '{key}'")
+        try:
+            a = np.asarray(set_points[key], dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"set points of '{name}': '{key}' is not a list of numbers") from None
+        if a.ndim != 1 or len(a) < 2 or not np.all(np.isfinite(a)):
+            raise ValueError(f"set points of '{name}': '{key}' must be at least 2 finite numbers")
+        out.append(a)
+    t, L, P = out
+    if not len(t) == len(L) == len(P):
+        raise ValueError(f"set points of '{name}': time_s, length_m and pressure_Pa differ in length")
+    if np.any(np.diff(t) < 0):
+        raise ValueError(f"set points of '{name}': time_s goes backwards")
+    if np.any(L <= 0) or np.any(P < 0):
+        raise ValueError(f"set points of '{name}': a length at or under 0 m or a pressure under 0 Pa")
+    return t, L, P
 
 
 def stroke_speed(ctx: Context, labels) -> float:
