@@ -49,6 +49,33 @@ def _variant(lab, name, time_factor=1.0, command_factor=1.0, tip_factor=1.0):
 # ------------------------------------------------------------------ efam diagnose-arm (1-3)
 
 
+def test_arm_headers_read_the_quantity_in_any_case_and_the_unit_and_muscle_as_written(lab):
+    # loggers write 'Time_s', 'P_s1m1_kPa', 'TIP_X_m': the same columns as the lower-case
+    # format, read to the same numbers; a unit differing in case (mPa is not MPa) and a muscle
+    # name in another case are still refused
+    folder, _, _, rec = lab
+    muscles = rec.muscles
+    plain = write_csv(folder / "plain.csv", rec)
+    lines = plain.read_text().splitlines()
+    head = lines[0].split(",")
+    shouted = [h.replace("time_", "Time_").replace("p_", "P_", 1).replace("tip_", "TIP_").replace("_x_", "_X_")
+               for h in head]  # fmt: skip
+    loud = folder / "loud.csv"
+    loud.write_text("\n".join([",".join(shouted)] + lines[1:]) + "\n")
+    a, b = read_csv(plain, muscles), read_csv(loud, muscles)
+    assert np.array_equal(a.time_s, b.time_s) and np.array_equal(a.command_Pa, b.command_Pa)
+    assert np.array_equal(a.tip_m, b.tip_m, equal_nan=True)
+    m = muscles[0]
+    for bad, says in (
+        (f"p_{m}_KPA", "KPA"),
+        (f"p_{m.upper()}_kPa" if m.upper() != m else f"p_{m.lower()}_kPa", "no muscle of that name"),
+    ):
+        wrong = folder / "wrong.csv"
+        wrong.write_text("\n".join([lines[0].replace(f"p_{m}_kPa", bad)] + lines[1:]) + "\n")
+        with pytest.raises(ArmRecordingError, match=says):
+            read_csv(wrong, muscles)
+
+
 def test_diagnose_arm_refuses_milliseconds_under_a_seconds_header(lab, capsys):
     """Before: a 6 s test written in ms under 'time_s' was accepted and replayed as 6000 s
     (1.5 million steps a rollout, hundreds of rollouts: killed after 40 s, still running)."""

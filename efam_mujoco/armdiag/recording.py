@@ -21,6 +21,9 @@ column                meaning
 ``marker<k>_x_<u>``   intermediate markers (optional, read and kept)
 ====================  ======================================================================
 
+The quantity (``time``, ``p``, ``pm``, ``tip``, ``marker``) is read in any case, as loggers write
+it (``Time_s``, ``TIP_X_m``); the muscle's name and the unit exactly as written.
+
 The arm is taken to be at rest under the first row's commands at the first time. Bad input
 (unknown column, unknown unit, a missing muscle, a non-numeric or non-finite value, a
 negative pressure, time not increasing, a time base no recorder makes, commands that are 0
@@ -125,22 +128,25 @@ def _classify(name: str, muscles: list[str], label: str, line: int, column: int)
         except UnitError as err:
             raise ArmRecordingError(str(err)) from None
 
-    if name.startswith("time"):
+    # the quantity is read in any case, as loggers write it (Time_s, P_s1m1_kPa, TIP_X_m); the
+    # muscle's name and the unit exactly as written (a muscle 'A' is not 'a', mPa is not MPa)
+    low = name.lower()
+    if low.startswith("time"):
         return "time", None, unit_of("time", "time")
     for prefix, role in (("pm_", "measured"), ("p_", "command")):
-        if name.startswith(prefix):
+        if low.startswith(prefix):
             for m in sorted(muscles, key=len, reverse=True):
-                if name.startswith(f"{prefix}{m}_"):
+                if name[len(prefix) :].startswith(f"{m}_"):
                     return role, m, unit_of(f"{prefix}{m}", "pressure")
             raise ArmRecordingError(
                 f"{where}: no muscle of that name in the arm model (muscles: {', '.join(muscles)})"
             )
     for axis in _TIP_AXES:
-        if name.startswith(f"tip_{axis}_") or name == f"tip_{axis}":
+        if low.startswith(f"tip_{axis}_") or low == f"tip_{axis}":
             return "tip", axis, unit_of(f"tip_{axis}", "length")
-    if name in ("tip_qw", "tip_qx", "tip_qy", "tip_qz"):
-        return "extra", name, 1.0
-    if name.startswith("marker"):
+    if low in ("tip_qw", "tip_qx", "tip_qy", "tip_qz"):
+        return "extra", low, 1.0
+    if low.startswith("marker"):
         base, _, unit = name.rpartition("_")
         try:
             return "extra", base + "_m", factor(unit, "length", where)
