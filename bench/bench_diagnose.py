@@ -195,10 +195,7 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         finally:
             design.OFFER_OPTIMAL = True
         alt = (d_alt.next_experiment or {}).get("recommended")
-        if alt and (alt["name"], alt["duration_s"]) == (
-            d.next_experiment["recommended"]["name"],
-            row["next"]["duration_s"],
-        ):
+        if alt and (alt["name"], alt["duration_s"]) == (row["next"]["experiment"], row["next"]["duration_s"]):
             row["next_without_optimal"] = row["next"]
         elif alt:
             row["next_without_optimal"] = try_recommendation(case, recording, nominal, d_alt, seed)
@@ -644,7 +641,7 @@ def _line(row: dict, k: int, n: int) -> None:
     if row["next"]:
         nxt = f" next {row['next']['experiment']} -> {row['next']['answer']} ({'resolved' if row['next']['resolved'] else 'not resolved'})"
         alt = row.get("next_without_optimal")
-        if alt and alt is not row["next"] and alt != row["next"]:
+        if alt and alt is not row["next"]:  # the same test is stored as the same row
             nxt += f"; without the optimal design {alt['experiment']} -> {alt['answer']} ({'resolved' if alt['resolved'] else 'not resolved'})"
     print(
         f"[{k:3d}/{n}] {mark} {flag} {row['family']:10s} {row['kind']:7s} {'+'.join(row['truth']) or 'none':32s} -> "

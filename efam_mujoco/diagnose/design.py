@@ -351,9 +351,10 @@ def focused(a: EffectModel, b: EffectModel, ctx: Context, speed_m_per_s: float, 
             p.go(0.001, P=0.0)
             p.go(2)
             p.go(abs(Li - p.L[-1]) / v, L=Li)
+        hold = max(2.0, FOCUS_S * s)
         p.go(0.001, P=Pi)
-        p.go(max(2.0, FOCUS_S * s))
-        said.append(f"{Li * 1e3:.0f} mm/{Pi / 1e3:.0f} kPa {max(2.0, FOCUS_S * s):.0f} s")
+        p.go(hold)
+        said.append(f"{Li * 1e3:.0f} mm/{Pi / 1e3:.0f} kPa {hold:.0f} s")
     p.go(0.001, P=0.0)
     p.go(2)
     return p.done(
@@ -488,13 +489,17 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
         for (truth, rival), w in zip(ways, weights)
     ]
 
+    def way_columns(t, L, P):  # what a re-fit could move over a test, each way round
+        model_cols = None if absorb is None else absorb(t, L, P)  # shared by both ways round
+        return [np.column_stack([c for c in (model_cols, None if own is None else own(t, L, P)) if c is not None]
+                                or [np.zeros((len(t), 0))]) for own in own_columns]  # fmt: skip
+
     def score(e: Experiment) -> dict:
         """The expected outcome of running ``e`` (the weaker way round decides)."""
         d, t, L, P = _difference(a, b, e)  # the two models simulated once per candidate
         rms, peak = _spread(d)
         block = blocks_of(e, ctx.muscle, SAMPLE_HZ, half_cycles_before)
-        model_cols = None if absorb is None else absorb(t, L, P)  # shared by both ways round
-        lefts = [_left_series(d, model_cols, None if own is None else own(t, L, P)) for own in own_columns]
+        lefts = [_left_series(d, cols) for cols in way_columns(t, L, P)]
         # block sums at the recorded rate (simulated at SAMPLE_HZ), each way round
         way_gaps = [np.bincount(block, weights=ls**2) * (sample_hz / SAMPLE_HZ) for ls in lefts]
         samples = np.bincount(block) * (sample_hz / SAMPLE_HZ)
@@ -509,11 +514,6 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
                 "unabsorbed_rms_N": left, "expected_chi2": float(e.t[-1]) * sample_hz * (left / max(noise_N, 1e-9)) ** 2,
                 "blocks": int(len(way_gaps[weak])), "expected_z": zs[weak], "duration_s": float(e.t[-1]),
                 "repeats": 1}  # fmt: skip
-
-    def way_columns(t, L, P):  # what a re-fit could move over a test, each way round
-        model_cols = None if absorb is None else absorb(t, L, P)
-        return [np.column_stack([c for c in (model_cols, None if own is None else own(t, L, P)) if c is not None]
-                                or [np.zeros((len(t), 0))]) for own in own_columns]  # fmt: skip
 
     tests, scored = {}, []
     try:
