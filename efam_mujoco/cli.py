@@ -142,6 +142,11 @@ def _file_args(args) -> tuple[dict, dict]:
         values = value if isinstance(value, (list, tuple)) else [value]
         return [v for v in values if v is not None and Path(str(v)).exists()]
 
+    for n in (*names_in, *names_out):  # '' is '.' to pathlib: "is a folder" hid the real mistake
+        value = getattr(args, n, None)
+        values = value if isinstance(value, (list, tuple)) else [value]
+        if any(isinstance(v, (str, os.PathLike)) and not str(v).strip() for v in values):
+            raise ValueError(f"{flag(n)}: an empty file name")
     inputs = {flag(n): existing(getattr(args, n, None)) for n in names_in}
     outputs = {flag(n): getattr(args, n, None) for n in names_out}
     if getattr(args, "mujoco_log", None) is not None:

@@ -55,6 +55,25 @@ class MuscleError(ValueError):
     """Impossible muscle geometry or constants."""
 
 
+def _fluid_pressures(pressure_Pa, where: str) -> np.ndarray:
+    """``pressure_Pa`` as an array of gauge pressures a fluid can have (ValueError naming
+    ``where`` otherwise: not numbers, NaN, inf, below vacuum or above :data:`MAX_GAUGE_PRESSURE_PA`)."""
+    try:
+        if pressure_Pa is None or isinstance(pressure_Pa, (str, bytes)):
+            raise TypeError
+        P = np.asarray(pressure_Pa, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: pressure_Pa must be numbers (Pa), got {pressure_Pa!r}") from None
+    bad = ~(np.isfinite(P) & (P >= -ATMOSPHERE_PA) & (P <= MAX_GAUGE_PRESSURE_PA))
+    if bad.any():
+        value = float(P.ravel()[int(np.argmax(bad.ravel()))])
+        raise ValueError(
+            f"{where}: pressure {value!r} Pa is outside the gauge pressures a fluid can have here "
+            f"({-ATMOSPHERE_PA:g} .. {MAX_GAUGE_PRESSURE_PA:g} Pa)"
+        )
+    return P
+
+
 @dataclass(frozen=True)
 class Geometry:
     """What is measured while a muscle is made (paper Table 2), in SI.
@@ -265,7 +284,12 @@ class Muscle:
 
     # --------------------------------------------------------------------------- forces
     def tension(self, pressure_Pa, length_m):
-        """Eq. 2: axial force in N, positive when the muscle pulls. Broadcasts its inputs."""
+        """Eq. 2: axial force in N, positive when the muscle pulls. Broadcasts its inputs.
+
+        As in the C plugin (which this is the reference for), a pressure under zero gauge counts as
+        zero, a length outside the admissible range meets the lock stiffness, and a non-finite
+        pressure or length gives 0 N: a simulation step never hands MuJoCo a NaN. Code that reads
+        measured data checks it first (``recordings``, ``check_pressure_Pa``)."""
         P_in, L_in = np.broadcast_arrays(
             np.asarray(pressure_Pa, dtype=float), np.asarray(length_m, dtype=float)
         )
@@ -307,7 +331,7 @@ class Muscle:
         """Eq. 9 in the MuJoCo sign: the force at the resting length, positive = pushes (what
         ``rig.blocked_push`` measures). Pressures in Pa (a warning below 1000 Pa)."""
         check_pressure_Pa(pressure_Pa, "Muscle.blocked_push")
-        return -self._blocked_tension(pressure_Pa)
+        return -self._blocked_tension(pressure_Pa, "Muscle.blocked_push")
 
     def blocked_force(self, pressure_Pa):
         """Deprecated: the paper-sign blocked force (= :meth:`blocked_tension`). Its name hid its
@@ -320,8 +344,10 @@ class Muscle:
         )
         return self._blocked_tension(pressure_Pa)
 
-    def _blocked_tension(self, pressure_Pa):
-        P = np.maximum(np.asarray(pressure_Pa, dtype=float), 0.0)
+    def _blocked_tension(self, pressure_Pa, where: str = "Muscle.blocked_tension"):
+        # as free_length: a NaN gave NaN, 1e12 Pa a 5.8e8 N "blocked force"
+        P = _fluid_pressures(pressure_Pa, where)
+        P = np.maximum(P, 0.0)
         theta = math.radians(self.theta_rest_deg)
         gauge = np.maximum(P - self.deadband_Pa, 0.0)
         area = math.pi * self.rest_diameter_m**2 / 4
@@ -333,25 +359,11 @@ class Muscle:
         the direction the pressure moves it. Vectorised over pressures (a loop of root finds).
         Pressures in Pa (a warning below 1000 Pa; ``check_units=False`` when the caller has
         checked a set these pressures belong to, e.g. one section's differential pressures)."""
-        try:
-            if pressure_Pa is None or isinstance(pressure_Pa, (str, bytes)):
-                raise TypeError
-            P = np.asarray(pressure_Pa, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"Muscle.free_length: pressure_Pa must be numbers (Pa), got {pressure_Pa!r}"
-            ) from None
-        if check_units:
-            check_pressure_Pa(P, "Muscle.free_length")
+        if check_units and not (pressure_Pa is None or isinstance(pressure_Pa, (str, bytes))):
+            check_pressure_Pa(pressure_Pa, "Muscle.free_length")
         # a root search needs a pressure a fluid can have: a NaN found the rest length, 1e308 Pa
         # ended in scipy's "function value is NaN"
-        bad = ~(np.isfinite(P) & (P >= -ATMOSPHERE_PA) & (P <= MAX_GAUGE_PRESSURE_PA))
-        if bad.any():
-            value = float(P.ravel()[int(np.argmax(bad.ravel()))])
-            raise ValueError(
-                f"Muscle.free_length: pressure {value!r} Pa is outside the gauge pressures a fluid can "
-                f"have here ({-ATMOSPHERE_PA:g} .. {MAX_GAUGE_PRESSURE_PA:g} Pa)"
-            )
+        P = _fluid_pressures(pressure_Pa, "Muscle.free_length")
         out = np.array([self._free_length_one(float(p)) for p in P.ravel()]).reshape(P.shape)
         return out if out.ndim else float(out)
 

@@ -318,8 +318,10 @@ def _validate_top_level(doc: dict, label: str) -> None:
             raise MuscleFileError(f"{label}: key '{key}' must be a string, got {_json_type(doc[key])}")
         # a control character or half a surrogate pair (JSON's \u0000, \ud800) is not text: it
         # breaks the XML models, reports and file names the name goes into
+        # a name is one line (it heads tables and names files); a description may have several
+        allowed = "" if key == "name" else "\t\n"
         bad = next(
-            (ch for ch in doc.get(key, "") if unicodedata.category(ch) in ("Cc", "Cs") and ch not in "\t\n"),
+            (ch for ch in doc.get(key, "") if unicodedata.category(ch) in ("Cc", "Cs") and ch not in allowed),
             None,
         )
         if bad is not None:

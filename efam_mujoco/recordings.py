@@ -162,14 +162,7 @@ def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, s
                 f"'{plain}_{'kPa' if plain == 'pressure' else next(iter(_unit_table(plain)))}'"
             )
         if base not in _BASE_ROLE:
-            for sep, word in ((";", "semicolon"), ("\t", "tab")):
-                if len(header) == 1 and sep in name:
-                    # one header cell holding every header: another separator than the comma
-                    raise RecordingError(
-                        f"{label}: line {line}, unknown column '{_shown(name)}': the header is one field "
-                        f"holding '{word}'-separated names; save the file comma-separated, with "
-                        f"decimal points (accepted: {_ACCEPTED})"
-                    )
+            refuse_other_separators(header, label, line, _ACCEPTED)
             raise RecordingError(
                 f"{label}: line {line}, unknown column '{_shown(name)}' (accepted: {_ACCEPTED})"
             )
@@ -233,6 +226,47 @@ def _decoded_lines(handle, label: str):
             ) from None
 
 
+def open_recording(path: Path, label: str):
+    """``path`` opened for reading as bytes, refused (:class:`RecordingError` naming ``label``) when
+    it is a folder, a pipe or a device (which would block or never end), or cannot be opened."""
+    if path.is_dir():
+        raise RecordingError(f"{label}: is a folder, not a recording file")
+    if path.exists() and not path.is_file():
+        raise RecordingError(f"{label}: not a regular file (a pipe or a device?)")
+    try:
+        return path.open("rb")
+    except OSError as err:
+        raise RecordingError(f"{label}: cannot open ({err.strerror})") from None
+
+
+def csv_rows(handle, label: str):
+    """(first line, last line, row) of each CSV row of an open recording that is not blank and
+    not a '#' comment, decoded by the rules of :func:`_decoded_lines`; last > first when a
+    quoted field ran over lines (an unclosed quote), which the caller names with a bad row."""
+    reader = csv.reader(_decoded_lines(handle, label))
+    while True:
+        first = reader.line_num + 1
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as err:
+            raise RecordingError(f"{label}: line {first}: not a CSV row ({err})") from None
+        if not _skip(row):
+            yield first, reader.line_num, row
+
+
+def refuse_other_separators(header: list[str], label: str, line: int, accepted: str) -> None:
+    """Refuse a header that is one field holding ';'- or tab-separated names (naming the separator)."""
+    for sep, word in ((";", "semicolon"), ("\t", "tab")):
+        if len(header) == 1 and sep in header[0]:
+            raise RecordingError(
+                f"{label}: line {line}, unknown column '{_shown(header[0].strip())}': the header is one field "
+                f"holding '{word}'-separated names; save the file comma-separated, with decimal points "
+                f"(accepted: {accepted})"
+            )
+
+
 def read_csv(
     path: str | os.PathLike,
     *,
@@ -254,14 +288,7 @@ def read_csv(
         raise ValueError(f"on_bad_rows must be one of {BAD_ROW_POLICIES}, got {on_bad_rows!r}")
     path = Path(path)
     label = shown_path(path)  # for messages; meta keeps the real name (write_csv compares it)
-    if path.is_dir():
-        raise RecordingError(f"{label}: is a folder, not a recording file")
-    if path.exists() and not path.is_file():  # a FIFO or a device would block or never end
-        raise RecordingError(f"{label}: not a regular file (a pipe or a device?)")
-    try:
-        handle = path.open("rb")
-    except OSError as err:
-        raise RecordingError(f"{label}: cannot open ({err.strerror})") from None
+    handle = open_recording(path, label)
     columns = None
     header: list[str] = []
     order = ("time", "length", "pressure", "force")
@@ -270,18 +297,8 @@ def read_csv(
     dropped: list[dict] = []
     last_time = -math.inf
     with handle:
-        reader = csv.reader(_decoded_lines(handle, label))
-        while True:
-            first = reader.line_num + 1  # a quoted field can carry a row over several lines
-            try:
-                row = next(reader)
-            except StopIteration:
-                break
-            except csv.Error as err:
-                raise RecordingError(f"{label}: line {first}: not a CSV row ({err})") from None
-            line = first
-            if _skip(row):
-                continue
+        for first, last, row in csv_rows(handle, label):
+            line = first  # a quoted field can carry a row over several lines
             if columns is None:
                 header, columns = row, _columns(row, label, line)
                 continue
@@ -291,8 +308,8 @@ def read_csv(
                 problem = (columns["time"][1], f"{what}: {parsed[0]:g} s after {last_time:g} s")
             if problem is not None:
                 column, reason = problem
-                if reader.line_num > first:  # an unclosed quote swallowed the lines after it
-                    reason += f" (a quote on line {first} runs on to line {reader.line_num})"
+                if last > first:  # an unclosed quote swallowed the lines after it
+                    reason += f" (a quote on line {first} runs on to line {last})"
                 if on_bad_rows == "error":
                     where = f"line {line}" + (f", column '{column}'" if column else "")
                     hint = " (--on-bad-rows drop, or on_bad_rows='drop' in Python, drops such rows)"
@@ -345,6 +362,26 @@ def _skip(row: list[str]) -> bool:
     return not row or all(not cell.strip() for cell in row) or row[0].lstrip().startswith("#")
 
 
+def decimal_cell(text: str, scale: float = 1.0) -> tuple[float | None, str]:
+    """A stripped, non-empty CSV cell as a value in SI (times ``scale``) and "", or None and
+    why not: a plain ASCII decimal only (``float`` alone also takes ``1_000``, a thousands
+    separator?, and other scripts' digits; a decimal comma is refused, not guessed), finite,
+    and at most :data:`MAX_MAGNITUDE_SI` in SI (``1e300`` is a corrupt field)."""
+    try:
+        if "_" in text or not text.isascii():
+            raise ValueError(text)
+        value = float(text)
+    except ValueError:
+        hint = " (a decimal comma? write decimal points)" if _DECIMAL_COMMA.match(text) else ""
+        return None, f"not a number: {_shown(text)!r}{hint}"
+    if not math.isfinite(value):
+        return None, f"not a finite number: {_shown(text)!r}"
+    value *= scale
+    if not abs(value) <= MAX_MAGNITUDE_SI:
+        return None, f"{_shown(text)} cannot be physical (magnitude above {MAX_MAGNITUDE_SI:g} in SI)"
+    return value, ""
+
+
 def _parse_row(row, header, columns, order):
     """The row's values in SI (role order) and None, or None and (column, problem)."""
     if len(row) != len(header):
@@ -355,22 +392,9 @@ def _parse_row(row, header, columns, order):
         text = row[index].strip()
         if not text:
             return None, (name, "empty value")
-        try:
-            # float() alone also takes 1_000 (a thousands separator?) and other scripts' digits:
-            # a cell must be a plain ASCII decimal (checked per cell, so the cheapest test)
-            if "_" in text or not text.isascii():
-                raise ValueError(text)
-            value = float(text)
-        except ValueError:
-            shown = _shown(text)
-            # a decimal comma is refused, not guessed (it could be a thousands separator)
-            hint = " (a decimal comma? write decimal points)" if _DECIMAL_COMMA.match(text) else ""
-            return None, (name, f"not a number: {shown!r}{hint}")
-        if not math.isfinite(value):
-            return None, (name, f"not a finite number: {_shown(text)!r}")
-        value *= scale
-        if not abs(value) <= MAX_MAGNITUDE_SI:
-            return None, (name, f"{text} cannot be physical (magnitude above {MAX_MAGNITUDE_SI:g} in SI)")
+        value, problem = decimal_cell(text, scale)
+        if value is None:
+            return None, (name, problem)
         if role == "pressure" and value < -P_ATM_PA:
             return None, (name, f"gauge pressure {value / 1e3:g} kPa is below -1 atm (-101.325 kPa)")
         out.append(value)
@@ -441,6 +465,7 @@ CHECKS = {
     "pressure-deadband": "pressures that never exceed the muscle's dead band",
     "pressure-negative": "gauge pressures well below zero",
     "pressure-absolute": "absolute pressures in a gauge column (every value an atmosphere too high)",
+    "pressure-unit": "pressures whose forces fit the model far better read in another unit (psi under 'kPa')",
     "force-range": "forces beyond what the muscle can produce",
     "force-dead": "a constant or dead force channel (load cell)",
     "force-sign": "a force channel whose sign is the other way round (push vs pull)",
@@ -480,6 +505,10 @@ ATMOSPHERE_PA = 101325.0
 #: A recording never below an atmosphere less this whose forces the model reproduces with less
 #: than this share of the error once an atmosphere is taken off is flagged as absolute pressure.
 ABSOLUTE_SLACK_PA, ABSOLUTE_ERROR_SHARE = 5e3, 0.5
+#: A recording whose forces the model reproduces with less than this share of the error (and at
+#: least ``UNIT_ERROR_MATERIAL_N`` better) once its pressures are read in another unit is flagged:
+#: one file of a set in psi under a 'kPa' header was calibrated and diagnosed as physics.
+UNIT_ERROR_SHARE, UNIT_ERROR_MATERIAL_N = 0.3, 5.0
 
 
 @dataclass(frozen=True)
@@ -533,6 +562,32 @@ def _slow_strokes(rec: Recording, rest: float, tcol: str) -> str:
         f"{MIN_STROKE_SPEED_M_PER_S * 1e6:g} um/s is a 100 mm stroke taking "
         f"{0.1 / MIN_STROKE_SPEED_M_PER_S / 3600:.3g} h{hint}"
     )
+
+
+def _pressure_unit_fit(muscle, F, P, L, aligned, column: str, rated_pressure_Pa: float):
+    """(model RMS error as read, (unit, its RMS error) or None): the pressure unit other than
+    ``column``'s under which ``muscle``'s force fits the recorded ``F`` best, when that is far
+    better (:data:`UNIT_ERROR_SHARE`, :data:`UNIT_ERROR_MATERIAL_N`) and keeps the pressures
+    within the rated pressure."""
+    written = split_unit(column)[1]
+    if written not in PRESSURE or not np.all(np.isfinite(aligned)) or not np.any(P > 0):
+        return 0.0, None
+    as_read = float(np.sqrt(np.mean((F - aligned) ** 2)))
+    best = None
+    for unit, size in PRESSURE.items():
+        scale = size / PRESSURE[written]
+        if unit == written or float(np.max(P)) * scale > rated_pressure_Pa:
+            continue
+        with np.errstate(all="ignore"):
+            error = float(np.sqrt(np.mean((F - np.asarray(muscle.push(P * scale, L), dtype=float)) ** 2)))
+        if np.isfinite(error) and (best is None or error < best[1]):
+            best = (unit, error)
+    # and the model so read must explain the force's own variation (R^2 >= 0.5): a dead load
+    # cell's zeros also sit nearer a muscle whose pressures are read a thousand times smaller
+    explains = best is not None and best[1] ** 2 <= 0.5 * float(np.var(F))
+    if explains and best[1] < UNIT_ERROR_SHARE * as_read and as_read - best[1] > UNIT_ERROR_MATERIAL_N:
+        return as_read, best
+    return as_read, None
 
 
 def check_plausibility(
@@ -676,6 +731,15 @@ def check_plausibility(
                     f"({ATMOSPHERE_PA / 1e3:.4g} kPa) lower against {error_as_read:.3g} N as recorded: is it an "
                     "absolute pressure? The column must hold gauge pressure (subtract the atmosphere)"
                 )))  # fmt: skip
+        # a pressure in another unit than its header's: within the rated pressure (else
+        # 'pressure-range' says it) the forces fit the model far better read in another unit
+        as_read, unit = _pressure_unit_fit(free, Fc, Pc, Lc, aligned, pcol, rated_pressure_Pa)
+        if unit:
+            findings.append(Finding("pressure-unit", (
+                f"{src}: column '{pcol}': the forces fit the muscle's model with {unit[1]:.3g} N RMS if the "
+                f"pressures were in {unit[0]} against {as_read:.3g} N as read in {split_unit(pcol)[1]}: "
+                f"is the column's unit right? the numbers fit '{split_unit(pcol)[0]}_{unit[0]}'"
+            )))  # fmt: skip
         # the sign: where the model's push force rises, the recorded one must not fall
         both = np.isfinite(aligned)
         if expected > 5.0 and spread > 0.0 and np.count_nonzero(both) > 10:
@@ -818,6 +882,12 @@ def read_for_fit(args, muscle, warn=None) -> list[Recording]:
     rated = args.rated_pressure_kPa
     if not (math.isfinite(rated) and 0 < rated <= 100e3):
         raise ValueError(f"--rated-pressure-kPa must be in (0, 100000] kPa, got {rated:g}")
+    if rated * 1e3 <= muscle.deadband_Pa:  # every recorded pressure was then blamed on the data
+        raise ValueError(
+            f"--rated-pressure-kPa {rated:g} is at or below the muscle's dead band "
+            f"{muscle.deadband_Pa / 1e3:.4g} kPa: at its rated pressure it would never be actuated (MPa or bar "
+            "written as kPa?)"
+        )
     if args.max_samples < 1000:
         raise ValueError(f"--max-samples must be at least 1000, got {args.max_samples}")
     seen: dict = {}

@@ -134,6 +134,63 @@ def test_diagnose_arm_refuses_millimetres_under_a_metre_header(lab, capsys):
             r"column 'tip_[xyz]_m'", r"rest length 0\.17", r"'tip_[xyz]_mm'")  # fmt: skip
 
 
+def test_diagnose_arm_refuses_metres_under_a_millimetre_header(lab, capsys):
+    """Before: tips in metres under 'tip_*_mm' (a tip that never left the base) were replayed
+    and a muscle was named, the wrong one (a blind review)."""
+    folder, model, _, rec = lab
+    path = write_csv(folder / "m_as_mm.csv", rec)
+    lines = path.read_text().splitlines()
+    lines[0] = (
+        lines[0].replace("tip_x_m", "tip_x_mm").replace("tip_y_m", "tip_y_mm").replace("tip_z_m", "tip_z_mm")
+    )
+    path.write_text("\n".join(lines) + "\n")
+    run_bad(["diagnose-arm", str(path), "--model", model], folder, capsys,
+            r"'tip_x_mm', 'tip_y_mm', 'tip_z_mm'", r"stays within .* of the arm's base", r"'tip_x_m'")  # fmt: skip
+
+
+def test_diagnose_arm_refuses_a_tip_value_no_arm_can_have(lab, capsys):
+    """Before: one tip of 1e300 m overflowed the distance to inf, which the reach check skipped;
+    the diagnosis ran on it and printed 'residual RMS inf mm' with exit 0. The reader now refuses
+    it as the muscle recordings' reader does (above 1e9 in SI), and the reach check counts an
+    overflow as far."""
+    folder, model, spec, rec = lab
+    tip = rec.tip_m.copy()
+    tip[1, 0] = 1e300
+    csv = write_csv(folder / "huge.csv", ArmRecording(rec.time_s, rec.muscles, rec.command_Pa, tip))
+    run_bad(["diagnose-arm", csv, "--model", model], folder, capsys,
+            r"line 3, column 5 \('tip_x_m'\)", r"cannot be physical")  # fmt: skip
+    limits = model_limits(spec)
+    huge = ArmRecording(rec.time_s, rec.muscles, rec.command_Pa, tip, meta={"source": "huge.csv"})
+    with pytest.raises(ArmRecordingError, match=r"column 'tip_x_m': the tip is inf m from the arm's base"):
+        check_against_model(huge, limits["max_command_Pa"], limits["base_m"], limits["rest_reach_m"])
+
+
+def test_arm_recordings_are_read_by_the_muscle_recordings_rules(lab, tmp_path):
+    """Before: a UTF-8 byte-order mark (Excel's 'CSV UTF-8') was an unknown column, '0.0_2' was
+    read as 0.02, a semicolon-separated file was 'unknown time unit', a bad byte was a codec's
+    byte offset, a bare-CR file was read. Now the bench reader's rules, and its messages."""
+    muscles = lab[3].muscles
+    text = write_csv(tmp_path / "plain.csv", lab[3]).read_text()
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    np.testing.assert_array_equal(
+        read_csv(tmp_path / "bom.csv", muscles).tip_m, read_csv(tmp_path / "plain.csv", muscles).tip_m
+    )
+    lines = text.splitlines()
+    cases = {
+        "underscore.csv": ("\n".join(lines[:2] + [lines[2].replace(",", "_1,", 1)] + lines[3:]), r"line 3, column 1 \('time_s'\): not a number"),
+        "semicolon.csv": (text.replace(",", ";"), r"'semicolon'-separated"),
+        "cr.csv": (text.replace("\n", "\r"), r"bare carriage return"),
+        "comma.csv": ("\n".join(lines[:2] + ['"0,02"' + lines[2][lines[2].index(","):]] + lines[3:]), r"decimal comma"),
+    }  # fmt: skip
+    for name, (body, words) in cases.items():
+        (tmp_path / name).write_bytes(body.encode())
+        with pytest.raises(ArmRecordingError, match=words):
+            read_csv(tmp_path / name, muscles)
+    (tmp_path / "latin.csv").write_bytes(text.replace("tip_z_m", "tip_z_m,T_\u00b0C", 1).encode("latin-1"))
+    with pytest.raises(ArmRecordingError, match=r"line 1, column \d+: byte 0xb0 is not UTF-8"):
+        read_csv(tmp_path / "latin.csv", muscles)
+
+
 def test_diagnose_arm_refuses_a_recording_no_pressure_drives(lab, capsys):
     """Before: commands of 0 kPa in every row were replayed and 'diagnosed' (the arm only sags)."""
     folder, model, _, rec = lab

@@ -232,7 +232,7 @@ OVERWRITES = [
         r"--mujoco-log muscle\.json would overwrite the input",
     ),
     (["muscle", "FAM1", "--json", "."], r"--json: '\.' is not a file name"),
-    (["muscle", "FAM1", "--json", ""], r"--json: '\.' is not a file name"),
+    (["muscle", "FAM1", "--json", ""], r"--json: an empty file name"),
     (["muscle", "FAM1", "--json", "sub"], r"sub: is a folder"),
     (
         ["muscle", "FAM1", "--json", "notes.txt/x.json"],

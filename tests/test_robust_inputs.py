@@ -7,8 +7,10 @@ line, naming the file, key, unit or flag, before any work and with no file writt
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
+import warnings
 from importlib import resources
 from pathlib import Path
 
@@ -259,3 +261,182 @@ def test_a_catalogue_that_is_a_pipe_is_not_called_missing(tmp_path):
     os.mkfifo(tmp_path / "cat.json")
     with pytest.raises(CatalogueError, match="not a regular file"):
         load_catalogue(tmp_path / "cat.json")
+
+
+# ------------------------------------------------- Python entry points (a blind review's finds)
+
+
+@pytest.mark.parametrize("pressure", [float("nan"), float("inf"), 1e12, None, "300"])
+def test_blocked_force_refuses_what_no_fluid_pressure_can_be(pressure):
+    """Before: NaN gave NaN, inf gave inf, 1e12 Pa a 5.8e8 N 'blocked force' (free_length refused
+    all of them), and None or a text 0 N."""
+    muscle = load_muscle("FAM1")
+    # a text of digits also draws the below-1000-Pa warning on its way to the refusal
+    with pytest.warns(UserWarning) if pressure == "300" else contextlib.nullcontext():
+        with pytest.raises(ValueError, match=r"Muscle\.blocked_push: pressure"):
+            muscle.blocked_push(pressure)
+    assert muscle.blocked_push(300e3) == pytest.approx(-muscle.blocked_tension(300e3))
+
+
+def test_arm_spec_refuses_text_flags_and_sizes_no_bench_arm_has():
+    """Before: gravity='no' and hold_tip='false' were taken as true (a text is truthy); a radius in
+    mm written as metres, a payload of 1e6 kg and an 11-day valve lag were accepted (the CLI
+    flags had ranges, the spec file and the constructor none)."""
+    from efam_mujoco import arm
+
+    section = arm.paper_section(disks=2)
+    for kw, words in [
+        (dict(gravity="no"), "gravity must be True or False"),
+        (dict(hold_tip="false"), "hold_tip must be True or False"),
+        (dict(payload_kg=1e6), r"payload_kg = 1000000\.0 is outside 0 \.\. 50 kg"),
+        (dict(pressure_tau_s=1e6), r"pressure_tau_s = 1000000\.0 is outside 0 \.\. 10 s"),
+        (dict(bend_viscosity_N_m2_s=1e12), "bend_viscosity_N_m2_s"),
+    ]:
+        with pytest.raises(ValueError, match=words):
+            arm.ArmSpec(sections=(section,), **kw)
+    with pytest.warns(UserWarning, match=r"max_pressure_Pa: pressure 517\.1 Pa is below 1000 Pa"):
+        arm.ArmSpec(sections=(section,), max_pressure_Pa=517.1)
+    muscle = load_muscle("FAM1")
+    with pytest.raises(ValueError, match=r"radius_m = 18\.2 is outside 0\.001 \.\. 0\.5 m"):
+        arm.SectionSpec(muscles=(muscle,) * 3, radius_m=18.2)
+    with pytest.raises(ValueError, match=r"muscles\[0\] is a str, not a Muscle"):
+        arm.SectionSpec(muscles=("FAM1",) * 3)
+    assert arm.ArmSpec(sections=(section,), gravity=np.bool_(False)).gravity == np.bool_(False)
+
+
+def test_diagnose_in_python_warns_of_kilopascals_given_as_pascals():
+    """Before: recordings built in Python with kPa under pressure_Pa gave no warning, then
+    'offset_N = 100 is outside [-100, 100]' (a fitted value a rounding past its bound: the fit
+    now holds its amplitudes at the bounds the solver had)."""
+    from efam_mujoco.diagnose import diagnose
+    from efam_mujoco.diagnose.effects import check_values
+
+    muscle = load_muscle("FAM1")
+    t = np.arange(0.0, 6.0, 0.01)
+    L = muscle.rest_length_m * (1.0 + 0.1 * (1 - np.cos(np.pi * t / 3.0)))
+    P = np.full(len(t), 300.0)  # 300 kPa meant
+    recording = Recording(t, L, P, muscle.push(300e3, L))
+    with pytest.warns(UserWarning, match=r"diagnose: pressure 300 Pa is below 1000 Pa"):
+        try:
+            diagnose([recording], muscle, next_experiment=False)
+        except ValueError:
+            pass  # refusing these data is fine too: the warning came first
+    # a value past its bound by a last digit is said with the digits that show it
+    with pytest.raises(ValueError, match=r"offset_N' = 100\.0000001 is outside \[-100, 100\]"):
+        check_values("force_offset", {"offset_N": 100.0000001})
+
+
+def test_one_file_of_a_set_in_psi_under_a_kilopascal_header_is_refused(tmp_path, capsys):
+    """Before: 45 psi written as '45 kPa' in one of five files passed every check; `calibrate`
+    wrote a muscle with 46 N RMS error (its blocked-force stage dropped the level as an outlier)
+    and `diagnose` named physics (`outside_library` 0.82, then a force offset and end effects)."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    names = [f"fam1_p{p}psi.csv" for p in (15, 30, 45, 60, 75)]
+    for name in names:
+        (tmp_path / name).write_bytes((examples / name).read_bytes())
+    wrong = tmp_path / "fam1_p45psi.csv"
+    text = wrong.read_text()
+    wrong.write_text(text.replace("pressure_psi", "pressure_kPa", 1))
+    for verb in (
+        ["calibrate", *names, "--muscle", "FAM1", "--out", "m.json"],
+        ["diagnose", *names, "--muscle", "FAM1"],
+    ):
+        run_bad(verb, tmp_path, capsys, r"\[pressure-unit\] fam1_p45psi\.csv: column 'pressure_kPa'",
+                "'pressure_psi'", "--allow pressure-unit")  # fmt: skip
+    # the files as written pass it
+    wrong.write_text(text)
+    code, _, err = run_cli(["calibrate", *names, "--muscle", "FAM1", "--out", "m.json"], tmp_path, capsys)
+    assert code == 0 and "pressure-unit" not in err
+
+
+def test_suite_actions_outside_the_pressure_range_are_said_not_silently_clipped():
+    """Before: dm_control's step clipped 300 (kPa typed for a fraction), 1.5 or -1 without a word,
+    and a NaN action reached MuJoCo's controls; the gym wrapper already warned."""
+    from efam_mujoco import suite
+
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0})
+    env.reset()
+    with pytest.warns(RuntimeWarning, match=r"outside \[0, 1\]: clipped .* once per task"):
+        env.step(np.full(3, 300.0))
+    assert np.allclose(env.physics.data.ctrl, env.physics.layout.rated)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.step(np.full(3, 1.5))  # said once
+        env.step(np.full(3, 0.5))
+    with pytest.raises(ValueError, match=r"finite pressure fractions"):
+        env.step(np.array([np.nan, 0.0, 0.0]))
+
+
+def test_diagnose_in_python_checks_its_arguments():
+    """Before: max_effects=-1 was accepted, laws='linear' was read letter by letter ('unknown
+    stress law l'), and a muscle of None ended in an AttributeError deep inside."""
+    from efam_mujoco.diagnose import diagnose
+
+    muscle = load_muscle("FAM1")
+    t = np.arange(0.0, 6.0, 0.01)
+    L = muscle.rest_length_m * (1.0 + 0.1 * (1 - np.cos(np.pi * t / 3.0)))
+    recording = Recording(t, L, np.full(len(t), 300e3), muscle.push(300e3, L))
+    with pytest.raises(ValueError, match=r"max_effects must be a whole number >= 0, got -1"):
+        diagnose([recording], muscle, max_effects=-1)
+    with pytest.raises(TypeError, match=r"muscle must be a Muscle \(load_muscle\), got NoneType"):
+        diagnose([recording], None)
+    d = diagnose([recording], muscle, laws="linear", max_effects=0, next_experiment=False)
+    assert d.to_json()["refit"]["law"] == "linear"
+
+
+def test_calibrate_refuses_a_dead_load_cell_even_when_its_check_is_allowed(tmp_path, capsys):
+    """Before: with --allow force-dead (and the force checks it implies) a load cell reading 0 N
+    everywhere ended in scipy's 'c must not contain values inf, nan, or None'. And the new
+    pressure-unit check must not blame the pressure for it (zeros sit nearer a muscle whose
+    pressures are read a thousand times smaller)."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    names = [f"fam1_p{p}psi.csv" for p in (15, 45, 75)]
+    for name in names:
+        lines = (examples / name).read_text().splitlines()
+        head = lines[0].split(",")
+        k = next(i for i, c in enumerate(head) if c.startswith(("force", "tension")))
+        rows = [",".join(c if i != k else "0" for i, c in enumerate(line.split(","))) for line in lines[1:]]
+        (tmp_path / name).write_text("\n".join([lines[0], *rows]) + "\n")
+    allow = ["--allow", "force-dead", "force-model", "force-sign", "force-range"]
+    err = run_bad(["calibrate", *names, "--muscle", "FAM1", "--out", "m.json", *allow], tmp_path, capsys,
+                  r"the force is 0 N in every sample", r"dead or disconnected load cell")  # fmt: skip
+    assert "pressure-unit" not in err
+
+
+def test_an_empty_file_name_is_said_to_be_empty(tmp_path, capsys):
+    """Before: '' became '.' and the message was '.: is a folder, not a recording file'."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    (tmp_path / "r.csv").write_bytes((examples / "fam1_p45psi.csv").read_bytes())
+    run_bad(["calibrate", "", "--muscle", "FAM1"], tmp_path, capsys, r"FILE: an empty file name")
+    run_bad(["diagnose", "r.csv", "--muscle", ""], tmp_path, capsys, r"--muscle: an empty file name")
+    run_bad(
+        ["diagnose", "r.csv", "--muscle", "FAM1", "--json", " "],
+        tmp_path,
+        capsys,
+        r"--json: an empty file name",
+    )
+
+
+def test_calibrate_refuses_an_output_folder_before_the_fit(tmp_path, capsys, monkeypatch):
+    """Before: `--out adir` (a folder) was refused only after the whole fit."""
+    from efam_mujoco.calibrate import cli as calibrate_cli
+
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    (tmp_path / "r.csv").write_bytes((examples / "fam1_p45psi.csv").read_bytes())
+    (tmp_path / "adir").mkdir()
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the recordings were read (and would be fitted) before the output was checked")
+
+    monkeypatch.setattr(calibrate_cli, "read_for_fit", no_fit)
+    run_bad(["calibrate", "r.csv", "--muscle", "FAM1", "--out", "adir"], tmp_path, capsys,
+            r"--out adir: is a folder, not a file")  # fmt: skip
+
+
+def test_a_rated_pressure_below_the_dead_band_is_refused(tmp_path, capsys):
+    """Before: --rated-pressure-kPa 0.001 was accepted and the data were blamed ('pressure 103.4
+    kPa is above the rated pressure 0.001 kPa; the numbers fit pressure_Pa')."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    (tmp_path / "r.csv").write_bytes((examples / "fam1_p45psi.csv").read_bytes())
+    run_bad(["diagnose", "r.csv", "--muscle", "FAM1", "--rated-pressure-kPa", "0.5"], tmp_path, capsys,
+            r"--rated-pressure-kPa 0\.5 is at or below the muscle's dead band 33\.62 kPa")  # fmt: skip

@@ -207,6 +207,8 @@ CASES = [
         [r"line \d+, column 4: .*key 'E4' appears twice"],
     ),
     ("NUL in the name", edited(name="FAM\u0000"), [r"key 'name' holds the character U\+0000"]),
+    # a name heads tables and names files: one line (a description may have several)
+    ("a line break in the name", edited(name="FAM\n1"), [r"key 'name' holds the character U\+000A"]),
     (
         "half a surrogate pair in the name",
         json.dumps(fam1()).replace('"FAM1"', '"FAM\\ud800"', 1).encode(),

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..musclefile import load_muscle
-from ..units import as_float
+from ..units import as_float, check_pressure_Pa
 from .masses import muscle_part_masses
 
 PSI = 6894.757293168361
@@ -42,6 +42,38 @@ def default_radius(muscles: tuple[Muscle, ...], clearance: float = DEFAULT_CLEAR
         (muscles[i].rest_diameter_m + muscles[(i + 1) % count].rest_diameter_m) / 2 for i in range(count)
     )
     return widest * (1 + clearance) / (2 * math.sin(math.pi / count))
+
+
+#: Physical ranges of a section's and an arm's values, ``key: (low, high, unit)``, as the
+#: ``efam arm`` flags have them (``arm.cli.ARGUMENT_BOUNDS``), so that a spec file or a Python
+#: constructor refuses what the command line refuses: a radius in mm written as metres (18.2 m),
+#: a payload in grams as kilograms, a valve lag in ms as seconds. The masses allow any plate a
+#: bench arm carries; the damping 1000 x the defaults (beyond, the arm takes hours to move).
+SECTION_BOUNDS = {
+    "radius_m": (1e-3, 0.5, "m"),
+    "disks": (1, 200, ""),
+    "end_mass_kg": (0.0, 50.0, "kg"),
+    "body_mass_kg": (0.0, 50.0, "kg"),
+    "plate_mass_kg": (0.0, 50.0, "kg"),
+    "disk_mass_kg": (0.0, 50.0, "kg"),
+}
+ARM_BOUNDS = {
+    "pressure_tau_s": (0.0, 10.0, "s"),
+    "max_pressure_Pa": (1e-9, 10e6, "Pa"),
+    "payload_kg": (0.0, 50.0, "kg"),
+    "timestep_s": (1e-7, 0.1, "s"),
+    "axial_viscosity_N_s": (0.0, 6.8e3, "N s"),
+    "bend_viscosity_N_m2_s": (0.0, 50.0, "N m^2 s"),
+}
+
+
+def _within(value, key: str, bounds: dict, where: str) -> float:
+    """``value`` as a finite float inside ``bounds[key]`` (ValueError naming ``where: key``)."""
+    number = _finite(value, key) if where == "section" else as_float(value)
+    low, high, unit = bounds[key]
+    if not (math.isfinite(number) and low <= number <= high):
+        raise ValueError(f"{where}: {key} = {value!r} is outside {low:g} .. {high:g} {unit}".rstrip())
+    return number
 
 
 def _finite(value, key: str) -> float:
@@ -78,8 +110,13 @@ class SectionSpec:
     def __post_init__(self):
         muscles = tuple(self.muscles)
         object.__setattr__(self, "muscles", muscles)
-        if len(muscles) < 3 or not all(isinstance(m, Muscle) for m in muscles):
-            raise ValueError(f"section: needs at least 3 Muscle objects, got {len(muscles)}")
+        if len(muscles) < 3:
+            raise ValueError(f"section: needs at least 3 muscles, got {len(muscles)}")
+        for i, m in enumerate(muscles):
+            if not isinstance(m, Muscle):
+                raise ValueError(
+                    f"section: muscles[{i}] is a {type(m).__name__}, not a Muscle (load one with load_muscle)"
+                )
         if self.angles_deg is None:
             object.__setattr__(
                 self, "angles_deg", tuple(360.0 * i / len(muscles) for i in range(len(muscles)))
@@ -92,14 +129,16 @@ class SectionSpec:
             object.__setattr__(self, "radius_m", default_radius(muscles))
         if not (_finite(self.radius_m, "radius_m") > 0):
             raise ValueError(f"section: radius_m must be positive, got {self.radius_m}")
-        object.__setattr__(self, "radius_m", _finite(self.radius_m, "radius_m"))
+        object.__setattr__(self, "radius_m", _within(self.radius_m, "radius_m", SECTION_BOUNDS, "section"))
         if int(_finite(self.disks, "disks")) != _finite(self.disks, "disks") or self.disks < 1:
             raise ValueError(f"section: disks must be a positive integer, got {self.disks}")
-        object.__setattr__(self, "disks", int(self.disks))
+        object.__setattr__(self, "disks", int(_within(self.disks, "disks", SECTION_BOUNDS, "section")))
         for key in ("end_mass_kg", "body_mass_kg", "plate_mass_kg", "disk_mass_kg"):
             value = getattr(self, key)
             if value is not None and not (_finite(value, key) >= 0):
                 raise ValueError(f"section: {key} must be >= 0, got {value}")
+            if value is not None:
+                _within(value, key, SECTION_BOUNDS, "section")
         self._check_no_overlap()
 
     def _check_no_overlap(self):
@@ -189,6 +228,13 @@ class ArmSpec:
             value = getattr(self, key)
             if not ((value is None or math.isfinite(value)) and ok):
                 raise ValueError(f"arm: {key} is invalid: {getattr(self, key)!r}")
+            if value is not None:
+                _within(value, key, ARM_BOUNDS, "arm")
+        for key in ("gravity", "hold_tip"):
+            # a text 'false' is true in Python: the spec-file reader refuses it, and so does this
+            if not isinstance(getattr(self, key), (bool, np.bool_)):
+                raise ValueError(f"arm: {key} must be True or False, got {getattr(self, key)!r}")
+        check_pressure_Pa(self.max_pressure_Pa, "arm: max_pressure_Pa")
 
     @property
     def rest_length_m(self) -> float:

@@ -24,18 +24,20 @@ column                meaning
 The quantity (``time``, ``p``, ``pm``, ``tip``, ``marker``) is read in any case, as loggers write
 it (``Time_s``, ``TIP_X_m``); the muscle's name and the unit exactly as written.
 
-The arm is taken to be at rest under the first row's commands at the first time. Bad input
-(unknown column, unknown unit, a missing muscle, a non-numeric or non-finite value, a
-negative pressure, time not increasing, a time base no recorder makes, commands that are 0
-everywhere) is an error naming the file, the line and the column. Against the arm model
-(:func:`check_against_model`): commands far above the model's highest pressure and tip
-positions farther from the base than the arm can reach are errors too (a unit mix-up, with the unit that fits); commands a little above that
-pressure are replayed at it, with a warning that counts them.
+The arm is taken to be at rest under the first row's commands at the first time. The file is
+read by the muscle recordings' rules (:mod:`efam_mujoco.recordings`: UTF-8 with or without a
+byte-order mark, commas, plain ASCII decimals). Bad input (unknown column, unknown unit, a
+missing muscle, a non-numeric, non-finite or unphysically large value, a negative pressure,
+time not increasing, a time base no recorder makes, commands that are 0 everywhere) is an error
+naming the file, the line and the column. Against the arm model (:func:`check_against_model`):
+commands far above the model's highest pressure, tip positions farther from the base than the
+arm can reach and tips that never leave the base are errors too (a unit mix-up, with the unit
+that fits); commands a little above that pressure are replayed at it, with a warning that
+counts them.
 """
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 from dataclasses import dataclass, field
@@ -44,8 +46,20 @@ from pathlib import Path
 import numpy as np
 
 from ..files import write_text_atomic
-from ..recordings import MAX_INTERVAL_S, MIN_INTERVAL_S, shown_path
+from ..recordings import (
+    MAX_INTERVAL_S,
+    MIN_INTERVAL_S,
+    RecordingError,
+    csv_rows,
+    decimal_cell,
+    open_recording,
+    refuse_other_separators,
+    shown_path,
+)
 from ..units import LENGTH, PRESSURE, TIME, UnitError, factor, split_unit, unit_that_fits
+
+#: The columns an arm recording takes, for messages.
+_ACCEPTED = "time_<unit>, p_<muscle>_<unit> per muscle, tip_x_<unit>, tip_y_<unit>, tip_z_<unit> (optional pm_, tip_q, marker<k>_)"
 
 
 class ArmRecordingError(ValueError):
@@ -73,6 +87,11 @@ COMMAND_REFUSE_FACTOR = 2.0
 #: (FAM1: 0.771 m / 0.170 m, braid-limited), so 10 x leaves a wide margin and still catches a
 #: tip in mm (1000 x) or cm (100 x) under an 'm' header.
 REACH_FACTOR = 10.0
+#: A tip whose median distance from the base is under this share of the arm's rest length never
+#: left the base: an EFAM arm only lengthens, and bent into a half circle its tip is still 2/pi of
+#: its length away, so a recording whose tip stays within a tenth of it holds another unit (metres
+#: under a 'mm' or 'cm' header) or another marker.
+MIN_REACH_SHARE = 0.1
 #: The sample interval a unit hint aims for: arm tip trackers sample at 30-200 Hz.
 TYPICAL_INTERVAL_S = 0.01
 
@@ -159,20 +178,25 @@ def _classify(name: str, muscles: list[str], label: str, line: int, column: int)
 
 
 def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
-    """Read an arm recording (format in the module docstring) for an arm with ``muscles``."""
+    """Read an arm recording (format in the module docstring) for an arm with ``muscles``.
+
+    The file is read by the muscle recordings' rules (``efam_mujoco.recordings``): UTF-8 with or
+    without a byte-order mark, no bare-CR line endings, '#' comment rows, commas only, plain
+    ASCII decimals (no ``1_000``, no decimal comma), magnitudes up to 1e9 in SI."""
     path = Path(path)
     label = shown_path(path)  # for messages; meta keeps the real name
     try:
-        with path.open(newline="") as handle:
-            rows = [(n, r) for n, r in enumerate(csv.reader(handle), 1) if r and any(c.strip() for c in r)]
-    except OSError as err:
-        raise ArmRecordingError(f"{label}: cannot open ({err.strerror})") from None
-    except (UnicodeDecodeError, csv.Error) as err:
-        raise ArmRecordingError(f"{label}: not a text CSV file ({err})") from None
-    rows = [(n, r) for n, r in rows if not r[0].lstrip().startswith("#")]
+        with open_recording(path, label) as handle:
+            rows = [(first, last, r) for first, last, r in csv_rows(handle, label)]
+    except RecordingError as err:
+        raise ArmRecordingError(str(err)) from None
     if not rows:
         raise ArmRecordingError(f"{label}: no header line")
-    head_line, header = rows[0]
+    head_line, _, header = rows[0]
+    try:
+        refuse_other_separators(header, label, head_line, _ACCEPTED)
+    except RecordingError as err:
+        raise ArmRecordingError(str(err)) from None
     roles = []
     seen = {}
     for c, raw in enumerate(header, 1):
@@ -197,22 +221,24 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
     if n < 2:
         raise ArmRecordingError(f"{label}: fewer than 2 data rows")
     values = np.full((n, len(header)), np.nan)
-    for r, (line, row) in enumerate(rows[1:]):
+    for r, (line, last, row) in enumerate(rows[1:]):
+        # an unclosed quote swallows the lines after it: said with the row it spoiled
+        runs_on = f" (a quote on line {line} runs on to line {last})" if last > line else ""
         if len(row) != len(header):
-            raise ArmRecordingError(f"{label}: line {line}: {len(row)} fields, the header has {len(header)}")
-        for c, (cell, (role, _key, _)) in enumerate(zip(row, roles)):
+            raise ArmRecordingError(
+                f"{label}: line {line}: {len(row)} fields, the header has {len(header)}{runs_on}"
+            )
+        for c, (cell, (role, _key, scale)) in enumerate(zip(row, roles)):
             cell = cell.strip()
             where = f"{label}: line {line}, column {c + 1} ('{header[c].strip()}')"
             if not cell:
                 if role in ("tip", "extra"):
                     continue  # a marker dropout
-                raise ArmRecordingError(f"{where}: empty value")
-            try:
-                v = float(cell)
-            except ValueError:
-                raise ArmRecordingError(f"{where}: not a number: {cell!r}") from None
-            if not math.isfinite(v):
-                raise ArmRecordingError(f"{where}: not finite: {cell!r}")
+                raise ArmRecordingError(f"{where}: empty value{runs_on}")
+            v, problem = decimal_cell(cell, scale)
+            if v is None:
+                raise ArmRecordingError(f"{where}: {problem}{runs_on}")
+            v = float(cell)  # as written: the unit's scale is applied to the whole table below
             if role in ("command", "measured") and v < 0:
                 raise ArmRecordingError(f"{where}: negative gauge pressure {v:g} (vacuum is not supported)")
             values[r, c] = v
@@ -247,7 +273,7 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         "source": str(path),
         "columns": [h.strip() for h in header],
         "dropouts": int(np.isnan(tip[:, 0]).sum()),
-        "lines": [line for line, _ in rows[1:]],  # the file line of each sample
+        "lines": [line for line, _, _ in rows[1:]],  # the file line of each sample
         "time_column": time_name,
         "command_columns": [header[col["command", m]].strip() for m in muscles],
         "tip_columns": [header[col["tip", a]].strip() for a in _TIP_AXES],
@@ -293,8 +319,10 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
     the base-to-tip distance of the straight arm at zero pressure. Refuses (:class:`ArmRecordingError`,
     naming the column, the first line and the unit that fits) commands above
     :data:`COMMAND_REFUSE_FACTOR` x the highest pressure and tips farther from the base than
-    :data:`REACH_FACTOR` x the rest reach. Returns one message per column with commands a little
-    above the highest pressure (replayed at it: the caller warns, never silent)."""
+    :data:`REACH_FACTOR` x the rest reach (a value that overflows counts as far), and tips that
+    stay within :data:`MIN_REACH_SHARE` x the rest reach of the base (median). Returns one message
+    per column with commands a little above the highest pressure (replayed at it: the caller
+    warns, never silent)."""
     src = shown_path(rec.meta.get("source", "recording"))
     max_Pa = np.broadcast_to(np.asarray(max_command_Pa, float), (len(rec.muscles),))
     columns = rec.meta.get("command_columns") or [f"p_{m}_Pa" for m in rec.muscles]
@@ -330,11 +358,12 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
     if not rest_reach_m > 0:  # a model without a length (tip on the base): nothing to compare with
         return notes
     limit = REACH_FACTOR * float(rest_reach_m)
-    distance = np.linalg.norm(rec.tip_m - np.asarray(base_m, float), axis=1)
-    far = np.flatnonzero(np.isfinite(distance) & (distance > limit))
+    with np.errstate(over="ignore"):  # a value near the float limit overflows to inf: far, as it is
+        distance = np.linalg.norm(rec.tip_m - np.asarray(base_m, float), axis=1)
+    far = np.flatnonzero(~np.isnan(distance) & (distance > limit))  # NaN: a marker dropout
+    tip_columns = rec.meta.get("tip_columns") or ["tip_x_m", "tip_y_m", "tip_z_m"]
     if far.size:
         r = int(far[0])
-        tip_columns = rec.meta.get("tip_columns") or ["tip_x_m", "tip_y_m", "tip_z_m"]
         axis = int(np.argmax(np.abs(rec.tip_m[r] - np.asarray(base_m, float))))
         name = tip_columns[axis]
         unit = split_unit(name)[1]
@@ -346,6 +375,17 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
             f"beyond {REACH_FACTOR:g} x its rest length ({far.size} of {len(distance)} samples do; the value "
             f"there: {rec.tip_m[r, axis] / shown:g} {unit if unit in LENGTH else 'm'})"
             + unit_hint(name, reach, rest_reach_m, LENGTH)
+        )
+    seen = distance[~np.isnan(distance)]
+    if seen.size and float(np.median(seen)) < MIN_REACH_SHARE * rest_reach_m:
+        reach = float(np.median(seen))
+        units = sorted({split_unit(c)[1] for c in tip_columns})
+        raise ArmRecordingError(
+            f"{src}: columns {', '.join(repr(c) for c in tip_columns)}: the tip stays within {reach:.4g} m of the "
+            f"arm's base (median), {reach / rest_reach_m:.3g} x the arm's rest length {rest_reach_m:.4g} m; an EFAM "
+            f"arm's tip is at least {MIN_REACH_SHARE:g} x its rest length from its base (a tip in another unit "
+            f"than {'/'.join(units)}, or another marker?)"
+            + unit_hint(tip_columns[0], reach, rest_reach_m, LENGTH)
         )
     return notes
 

@@ -111,7 +111,10 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
                     load_muscle(m) if isinstance(m, str) else muscle_from_document(m, f"{where}.muscles[{i}]")
                 )
             except (MuscleFileError, ValueError, TypeError) as err:
-                raise ArmModelError(f"{where}.muscles[{i}]: {err}") from None
+                text = str(err)
+                # a muscle document's own error already names this place (said once, not twice)
+                named = text if text.startswith(f"{where}.muscles[{i}]") else f"{where}.muscles[{i}]: {text}"
+                raise ArmModelError(named) from None
         kw = {k: s[k] for k in _SECTION_KEYS if k in s}
         _json_types(kw, SectionSpec, where)
         if kw.get("angles_deg") is not None:

@@ -6,7 +6,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from ..files import OutputSet, check_outputs
+from ..files import OutputError, OutputSet, check_outputs
 from ..musclefile import muscle_from_document, read_document
 from ..recordings import add_recording_arguments, read_for_fit
 from ..stress import LAW_NAMES
@@ -76,6 +76,10 @@ def figure_paths(prefix) -> list[Path]:
 
 def run(args) -> int:
     """``efam calibrate``: read, check, fit, then write every output together."""
+    if args.out is not None and Path(args.out).is_dir():  # a muscle file, refused before the fit
+        raise OutputError(
+            f"--out {args.out}: is a folder, not a file; give a file name (e.g. {Path(args.out) / 'muscle.json'})"
+        )
     if args.figures:
         check_outputs(
             {"--figures": figure_paths(args.figures)}, {"FILE": args.files, "--muscle": [args.muscle]}

@@ -147,6 +147,14 @@ def calibrate(
     if total < MIN_SAMPLES:
         # three rows gave a muscle file without a word
         raise ValueError(f"too few samples to calibrate: {total} in all (at least {MIN_SAMPLES})")
+    forces = np.concatenate([r.force_N for r in recordings])
+    if np.ptp(forces) == 0.0:
+        # a dead load cell let through with --allow force-dead: a fit has nothing to follow (it
+        # ended in scipy's "c must not contain values inf, nan, or None")
+        raise ValueError(
+            f"the force is {forces[0]:g} N in every sample: a stress law cannot be calibrated "
+            "against a constant force (a dead or disconnected load cell?)"
+        )
     samples = pool(recordings)
     blocked, base = geometry_from_blocked(samples, muscle, estimate_theta)
     problem = Problem(base, recordings, n=n, samples=samples)

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..muscle import Muscle
 from ..recordings import MIN_SAMPLES, Recording, refuse_copies
+from ..units import check_pressure_Pa
 from .confidence import (
     CALIBRATION,
     OUTSIDE,
@@ -196,6 +197,14 @@ def diagnose(
         if len(r) < MIN_SAMPLES:
             raise ValueError(f"{r.meta.get('source', 'recording')}: too few samples to diagnose ({len(r)})")
     refuse_copies(recordings)
+    check_pressure_Pa(np.concatenate([r.pressure_Pa for r in recordings]), "diagnose")
+    if not isinstance(muscle, Muscle):
+        raise TypeError(f"diagnose: muscle must be a Muscle (load_muscle), got {type(muscle).__name__}")
+    if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 0:
+        raise ValueError(f"diagnose: max_effects must be a whole number >= 0, got {max_effects!r}")
+    # one name is a name, not its letters ('linear' was read as the laws 'l', 'i', ...)
+    candidates = (candidates,) if isinstance(candidates, str) else tuple(candidates)
+    laws = (laws,) if isinstance(laws, str) else laws
     for name in candidates:
         get(name)
     fitted = refit(muscle, recordings) if laws is None else refit(muscle, recordings, laws)

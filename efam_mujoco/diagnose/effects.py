@@ -979,7 +979,9 @@ def check_values(name: str, values: dict) -> dict[str, float]:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise ValueError(f"effect '{name}': parameter '{p.key}' must be a finite number, got {v!r}")
         if not p.lo <= v <= p.hi:
-            raise ValueError(f"effect '{name}': parameter '{p.key}' = {v:g} is outside [{p.lo:g}, {p.hi:g}]")
+            raise ValueError(
+                f"effect '{name}': parameter '{p.key}' = {v:.10g} is outside [{p.lo:g}, {p.hi:g}]"
+            )
         if p.discrete and v not in p.grid:
             choices = ", ".join(f"{g:g}" for g in sorted(p.grid))
             raise ValueError(

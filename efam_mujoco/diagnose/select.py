@@ -323,12 +323,18 @@ class Engine:
             values[effect.name] = unseen | effect.settle(self.ctx, shape)
             identifiable[effect.name] = list(shape)
         per_recording: dict[tuple[str, str], dict[int, float]] = {}
+        bounds = {(e.name, p.key): (p.lo, p.hi) for e in effects for p in e.linear}
+
+        def held(name, key, value):  # the solver's bounds, less its last-digit rounding past them
+            lo, hi = bounds[name, key]
+            return float(min(max(value, lo), hi))
+
         for (name, key, scale), a in zip(owner, theta[k_model:]):
             if "#" in key:
                 base, r = key.split("#")
-                per_recording.setdefault((name, base), {})[int(r)] = float(a / scale)
+                per_recording.setdefault((name, base), {})[int(r)] = held(name, base, a / scale)
                 continue
-            values[name][key] = float(a / scale)
+            values[name][key] = held(name, key, a / scale)
             identifiable[name].append(key)
         counts = np.diff(np.r_[self.ctx.starts, self.n])
         for (name, base), found in per_recording.items():

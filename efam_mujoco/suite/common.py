@@ -16,6 +16,7 @@ from __future__ import annotations
 import collections
 import math
 import numbers
+import warnings
 
 import mujoco as mj
 import numpy as np
@@ -466,7 +467,24 @@ class EfamTask(base.Task):
         )
 
     def before_step(self, action, physics):
+        """Pressure fractions in [0, 1] to the actuators' controls. An action outside [0, 1] is
+        clipped with a warning (once per task: saturation is never silent, as in the gym
+        wrapper); a non-finite one is an error (MuJoCo would take NaN controls)."""
         action = getattr(action, "continuous_actions", action)
+        low, high = np.min(action), np.max(action)
+        if not (low >= 0.0 and high <= 1.0):
+            if not (np.isfinite(low) and np.isfinite(high)):
+                raise ValueError(
+                    f"action must be finite pressure fractions in [0, 1], got {np.asarray(action).tolist()}"
+                )
+            if not getattr(self, "_told_clipped", False):
+                self._told_clipped = True
+                warnings.warn(
+                    f"action {np.asarray(action).tolist()} is outside [0, 1]: clipped to the muscles' pressure "
+                    "range (said once per task)",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
         # np.clip costs more than the two ufuncs on arrays this small
         np.multiply(np.minimum(np.maximum(action, 0.0), 1.0), physics.layout.rated, out=physics.views.ctrl)
 
