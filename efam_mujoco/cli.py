@@ -257,6 +257,12 @@ def _main(argv: list[str] | None) -> int:
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line
             warnings.showwarning = functools.partial(_show_warning, command=command)
+            if _small_kilopascal_flags(args):
+                # said once in the flag's own unit: the Pa-level check of every function the value
+                # feeds would repeat it, naming internal functions and a unit the user did not give
+                from .units import PressureUnitWarning
+
+                warnings.simplefilter("ignore", PressureUnitWarning)
             status = int(args.run(args) or 0)
         sys.stdout.flush()
         return status
@@ -302,6 +308,29 @@ def _message(err: BaseException) -> str:
     else:
         text = " ".join(line.strip() for line in str(err).splitlines() if line.strip())
     return visible(text) or type(err).__name__
+
+
+def _small_kilopascal_flags(args) -> bool:
+    """Warn (once per flag, in kPa) of a pressure flag below 1 kPa (``--pressures-kPa 0.3``: kPa
+    meant as MPa or bar?); True when one was. The kPa flags: every ``*_kPa`` destination and those a
+    command lists in ``kpa_flags`` (``efam size --pressure``)."""
+    import math
+
+    said = False
+    names = [n for n in vars(args) if n.lower().endswith("_kpa")] + list(getattr(args, "kpa_flags", ()))
+    for name in names:
+        value = getattr(args, name, None)
+        values = [
+            v for v in (value if isinstance(value, (list, tuple)) else [value]) if isinstance(v, (int, float))
+        ]
+        values = [v for v in values if math.isfinite(v) and v > 0]
+        if values and max(values) < 1.0:
+            flag = "--" + name.replace("_", "-")
+            warnings.warn(
+                f"{flag} {max(values):g} is below 1 kPa: pressures here are kPa", UserWarning, stacklevel=2
+            )
+            said = True
+    return said
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None, *, command="efam") -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -165,11 +164,7 @@ def _pressures(args) -> tuple[float, ...]:
             )
     if len(args.pressures_kPa) > MAX_PRESSURES:
         raise ValueError(f"--pressures-kPa: at most {MAX_PRESSURES} pressures, got {len(args.pressures_kPa)}")
-    if 0 < max(args.pressures_kPa) < 1.0:
-        print(
-            f"warning: --pressures-kPa {max(args.pressures_kPa):g} is below 1 kPa: pressures here are kPa",
-            file=sys.stderr,
-        )
+    # a value below 1 kPa is warned of once, in kPa, by the command line (cli._small_kilopascal_flags)
     return tuple(p * 1e3 for p in args.pressures_kPa)
 
 
@@ -182,8 +177,9 @@ def run_muscle(args) -> int:
     muscle = load_muscle(args.muscle, args.stress)
     pressures = _pressures(args)
     with warnings.catch_warnings():
-        # the flag's unit (kPa) was checked above, once, in its own words; the Pa-level check of
-        # every function it feeds would repeat it, asking about a unit the user did not give
+        # the flag's unit (kPa) is checked once, in its own words (cli._small_kilopascal_flags);
+        # the Pa-level check of every function it feeds would repeat it, asking about a unit the
+        # user did not give
         warnings.simplefilter("ignore", PressureUnitWarning)
         rows = compare(muscle, pressures)
     doc = report_dict(muscle, rows)

@@ -197,6 +197,10 @@ def test_install_plugin_never_removes_the_packages_own_library(tmp_path, monkeyp
     monkeypatch.setattr(installer, "library_path", lambda: str(own))
     assert main(["install-plugin", "--remove", "--dir", str(package)]) == 0
     assert own.exists() and "the package's own library" in capsys.readouterr().out
+    # installing there copies nothing, and says so (before: "installed ...")
+    assert main(["install-plugin", "--dir", str(package)]) == 0
+    out = capsys.readouterr().out
+    assert "this build's own library: nothing to install there" in out and "installed" not in out
 
 
 @pytest.mark.parametrize(

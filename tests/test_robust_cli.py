@@ -830,3 +830,17 @@ def test_a_small_pressure_flag_is_warned_about_once_in_the_flags_unit(folder, ca
     # 0.5 kPa: one warning in kPa; the Pa-level check inside must not ask "did you mean 500 kPa?"
     code, out, err = run_cli(["muscle", "FAM1", "--pressures-kPa", "0.5"], folder, capsys)
     assert code == 0 and err.count("warning") == 1 and "below 1 kPa" in err and "did you mean" not in err
+
+
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["arm", "--pressures-kPa", "0.3", "0.3", "0.3"], "--pressures-kPa 0.3"),
+        (["size", "--stroke", "0.5", "--force", "10", "--pressure", "0.3"], "--pressure 0.3"),
+    ],
+)
+def test_other_commands_warn_of_a_small_pressure_once_in_the_flags_unit(folder, capsys, argv, flag):
+    # before: two or three warnings in Pa naming internal functions (arm.settle, Muscle.free_length)
+    _, _, err = run_cli(argv, folder, capsys)
+    assert err.count("is below 1 kPa") == 1 and f"warning: {flag} is below 1 kPa" in err, err
+    assert "Pa is below 1000 Pa" not in err and "did you mean" not in err, err

@@ -301,7 +301,10 @@ def _run(args) -> int:
         if args.json:
             write_json_atomic(args.json, result)
     if not (args.xml or args.pressures_kPa):
-        print("nothing to do: pass --xml FILE, --pressures-kPa ..., or --write-models", file=sys.stderr)
+        print(
+            "efam arm: error: nothing to do: pass --xml FILE, --pressures-kPa ..., or --write-models",
+            file=sys.stderr,
+        )
         return 2
     return 0
 

@@ -181,6 +181,9 @@ def run(args) -> int:
             print(f"efam.muscle was not installed in {where}: nothing removed")
         return 0
     target = install(args.dir)
+    if _same_file(library_path(), target):  # nothing was copied: say so, not "installed"
+        print(f"{target} is this build's own library: nothing to install there")
+        return 0
     print(f"installed {target}")
     if args.dir is None:
         print("plain `import mujoco` (and mujoco.viewer, dm_control) now loads efam.muscle")

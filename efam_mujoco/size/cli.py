@@ -99,7 +99,12 @@ def register_cli(subparsers) -> None:
     )
     p.add_argument("--figure", metavar="FILE", default=None,
                    help="write the force-stroke envelope figure (.png, .pdf, .svg, ...) (default: none)")  # fmt: skip
-    p.set_defaults(run=run, file_inputs=("stress_from", "catalogue"), file_outputs=("json", "figure"))
+    p.set_defaults(
+        run=run,
+        file_inputs=("stress_from", "catalogue"),
+        file_outputs=("json", "figure"),
+        kpa_flags=("pressure",),
+    )
 
 
 def run(args) -> int:
