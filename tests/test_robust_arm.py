@@ -288,6 +288,20 @@ def test_arm_shows_its_phases(tmp_path, capsys, monkeypatch):
 # ------------------------------------------------------------------------- continuum bound (6)
 
 
+def _counted_rods(monkeypatch) -> list:
+    """Every continuum rod a solve builds, kept so that a test can read the work it did (its
+    ``evaluations``) instead of a wall-clock time."""
+    rods = []
+    build = continuum._Rod.__init__
+
+    def counted(self, *args, **kwargs):
+        build(self, *args, **kwargs)
+        rods.append(self)
+
+    monkeypatch.setattr(continuum._Rod, "__init__", counted)
+    return rods
+
+
 def test_continuum_reference_with_the_sizers_heavy_payload_stops_promptly(monkeypatch):
     """``efam size --bundle 3 --payload 10``: three 25 mm muscles, horizontal, 10 kg at the tip.
     The load pushes the muscles into lock-out; the rod's integrations turn stiff (1700
@@ -305,14 +319,7 @@ def test_continuum_reference_with_the_sizers_heavy_payload_stops_promptly(monkey
                          orientation="horizontal", payload_kg=10.0)  # fmt: skip
     # the work, not the wall clock (a timed test fails on a shared machine: 10.4 s beside a
     # benchmark): every rod the solve builds stops within its evaluation bound
-    rods = []
-    build = continuum._Rod.__init__
-
-    def counted(self, *args, **kwargs):
-        build(self, *args, **kwargs)
-        rods.append(self)
-
-    monkeypatch.setattr(continuum._Rod, "__init__", counted)
+    rods = _counted_rods(monkeypatch)
     with pytest.raises(continuum.ContinuumError, match="did not converge|no rod equilibrium"):
         continuum.solve_arm_spec(loaded, [[400e3] * 3], max_evaluations=8000)
     assert rods and all(rod.evaluations <= rod.max_evaluations + 1 for rod in rods)
@@ -323,14 +330,7 @@ def test_continuum_budget_is_an_error_not_a_hang(monkeypatch):
     """Any loaded solve stops at its evaluation bound with a clear ContinuumError (its work is
     counted, not timed)."""
     heavy = arm.ArmSpec(sections=(arm.paper_section(),), orientation="horizontal", payload_kg=5.0)
-    rods = []
-    build = continuum._Rod.__init__
-
-    def counted(self, *args, **kwargs):
-        build(self, *args, **kwargs)
-        rods.append(self)
-
-    monkeypatch.setattr(continuum._Rod, "__init__", counted)
+    rods = _counted_rods(monkeypatch)
     with pytest.raises(continuum.ContinuumBudgetError, match="did not converge within 500 constitutive"):
         continuum.solve_arm_spec(heavy, [[200e3] * 3], max_evaluations=500)
     assert rods and all(rod.evaluations <= 501 for rod in rods)
