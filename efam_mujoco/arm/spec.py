@@ -69,7 +69,7 @@ ARM_BOUNDS = {
 
 def _within(value, key: str, bounds: dict, where: str) -> float:
     """``value`` as a finite float inside ``bounds[key]`` (ValueError naming ``where: key``)."""
-    number = _finite(value, key) if where == "section" else as_float(value)
+    number = as_float(value)
     low, high, unit = bounds[key]
     if not (math.isfinite(number) and low <= number <= high):
         raise ValueError(f"{where}: {key} = {value!r} is outside {low:g} .. {high:g} {unit}".rstrip())

@@ -235,16 +235,15 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
                 if role in ("tip", "extra"):
                     continue  # a marker dropout
                 raise ArmRecordingError(f"{where}: empty value{runs_on}")
-            v, problem = decimal_cell(cell, scale)
+            v, problem = decimal_cell(cell, scale)  # in SI
             if v is None:
                 raise ArmRecordingError(f"{where}: {problem}{runs_on}")
-            v = float(cell)  # as written: the unit's scale is applied to the whole table below
             if role in ("command", "measured") and v < 0:
-                raise ArmRecordingError(f"{where}: negative gauge pressure {v:g} (vacuum is not supported)")
+                raise ArmRecordingError(
+                    f"{where}: negative gauge pressure {float(cell):g} (vacuum is not supported)"
+                )
             values[r, c] = v
     col = {role[:2]: i for i, role in enumerate(roles)}
-    scale = np.array([role[2] for role in roles])
-    values = values * scale
     t = values[:, col["time", None]]
     time_name = header[col["time", None]].strip()
     bad = np.flatnonzero(np.diff(t) <= 0)
