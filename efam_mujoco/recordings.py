@@ -652,10 +652,18 @@ def check_plausibility(
                 )))  # fmt: skip
             nearest = float(np.min(np.abs(L - rest)))
             if nearest > REST_LENGTH_REACH * rest:
+                base, unit = split_unit(lcol)
+                question = "is --muscle the muscle that was tested?"
+                # a muscle's length written under a displacement header: read from the resting
+                # length, every value lands one resting length too far, and as lengths they fit
+                if base == "displacement" and np.min(np.abs(L - 2 * rest)) <= REST_LENGTH_REACH * rest:
+                    question = (
+                        f"'{lcol}' is read from the resting length (length = {rest:.4g} m + displacement), and "
+                        f"the numbers fit the muscle's own length: is the column 'length_{unit}'?"
+                    )
                 findings.append(Finding("rest-length", (
                     f"{src}: column '{lcol}': the recording never comes within {REST_LENGTH_REACH:.0%} of the "
-                    f"muscle's resting length {rest:.4g} m (nearest {nearest:.4g} m away): is --muscle the "
-                    "muscle that was tested?"
+                    f"muscle's resting length {rest:.4g} m (nearest {nearest:.4g} m away): {question}"
                 )))  # fmt: skip
         # pressures
         top = float(np.max(P))

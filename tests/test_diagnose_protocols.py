@@ -1159,3 +1159,22 @@ def test_the_optimal_design_holds_where_a_static_term_shows_and_travels_as_set_p
         experiment(best["name"], ctx, 0.01, dict(sp, time_s=sp["time_s"][::-1]))
     with pytest.raises(ValueError, match="differ in length"):
         experiment(best["name"], ctx, 0.01, dict(sp, length_m=sp["length_m"][:-1]))
+
+
+def test_the_maps_in_force_are_the_ones_fitted_on_the_stored_calibration_rows():
+    """The constants in ``confidence.CALIBRATION`` are what ``bench/bench_diagnose.py
+    --calibrate`` fitted last (stored with its rows): a change to the diagnosis that re-runs the
+    calibration and forgets to carry its fit over would leave probabilities fitted to other
+    evidence."""
+    import json
+    from pathlib import Path
+
+    from efam_mujoco.diagnose.confidence import CALIBRATION
+
+    stored = Path(__file__).resolve().parents[1] / "bench" / "results" / "diagnose_calibration.json"
+    fitted = json.loads(stored.read_text())["calibration"]
+    for key in ("a", "b", "c", "an", "bn", "cn", "dn", "concentration", "tie_margin", "offset_ridge"):
+        assert getattr(CALIBRATION, key) == pytest.approx(fitted[key], abs=5e-4), key
+    assert set(CALIBRATION.effect_offset) == set(fitted["effect_offset"])
+    for term, offset in fitted["effect_offset"].items():
+        assert CALIBRATION.effect_offset[term] == pytest.approx(offset, abs=5e-4), term

@@ -173,6 +173,14 @@ PLAUSIBILITY_CASES = [
         r"length_m\b",
     ),
     ("displacement mm labelled m", displacement(1000.0, "m"), "length-unit|length-range", r"displacement"),
+    (
+        # the muscle's own length under a displacement header (a blind review's generator did
+        # this): the message said only 'is --muscle the muscle that was tested?'
+        "length written as displacement",
+        csv_text(good_rows() * [1, 1000, 1, 1], "time_s,displacement_mm,pressure_kPa,force_N"),
+        "rest-length",
+        r"read from the resting length.*is the column 'length_mm'\?",
+    ),
     ("pressure Pa labelled kPa", scaled(2, 1000.0), "pressure-range", r"pressure_Pa"),
     (
         "pressure kPa labelled Pa",

@@ -111,24 +111,24 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.694  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain + offset[term])))
-    b: float = 6.320
-    c: float = -4.732
+    a: float = -2.506  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain + offset[term])))
+    b: float = 6.109
+    c: float = -4.916
     #: a draw whose best two effects are within this share of held-out RMS is half a win each
     #: (not fitted). Between an effect and ``none`` the relevance margin decides alone: a tie
     #: there too left a dead zone (an effect beating ``none`` by 3-5 % split 50:50 however much
     #: data were added), which no next experiment could resolve
     tie_margin: float = 0.02
-    an: float = 3.105  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -29.677
-    cn: float = -27.002
-    dn: float = -0.731  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = 3.162  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -32.525
+    cn: float = -27.069
+    dn: float = -0.762  # weight of the best effect's paired separation from none (``best_effect_z``)
     #: per library term, the offset of p_physics's log-odds (0 for a term not listed): the terms
     #: an unmodelled effect most often hides behind (a braid stretch, end effects) sit below 0
     effect_offset: dict[str, float] = field(
         default_factory=lambda: {
-            "braid_compliance": -1.442, "drift": -0.529, "end_effects": -1.128, "force_offset": 0.205,
-            "friction": 0.297, "pressure_lag": 1.444, "softening": 1.589, "viscoelasticity": -0.446,
+            "braid_compliance": -1.451, "drift": -0.559, "end_effects": -1.107, "force_offset": 0.189,
+            "friction": 0.291, "pressure_lag": 1.426, "softening": 1.598, "viscoelasticity": -0.395,
         }
     )  # fmt: skip
     offset_ridge: float = 0.3  # the ridge weight on the offsets the cross-validation chose
