@@ -133,9 +133,13 @@ def _file_args(args) -> tuple[dict, dict]:
     if callable(names_out):  # outputs that depend on the other flags
         names_out = names_out(args)
 
+    # a command whose file argument is positional names it in capitals, as its usage line does
+    # (``efam muscle ""`` said '--muscle', a flag that command does not have)
+    positionals = set(getattr(args, "file_positionals", None) or ())
+
     def flag(name):
-        if name == "recording":
-            return "RECORDING"
+        if name == "recording" or name in positionals:
+            return name.upper()
         return "FILE" if name in ("files", "file") else "--" + name.replace("_", "-")
 
     def existing(value):  # a preset name (FAM1) is not a file

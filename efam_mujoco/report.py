@@ -219,7 +219,9 @@ def register_cli(sub) -> None:
         help="gauge pressures in kPa, within the rig's 0 .. 1000 kPa (default: the paper's five)",
     )
     p.add_argument("--json", help="write the table as JSON to this file")
-    p.set_defaults(run=run_muscle, file_inputs=("muscle",), file_outputs=("json",))
+    p.set_defaults(
+        run=run_muscle, file_inputs=("muscle",), file_outputs=("json",), file_positionals=("muscle",)
+    )
 
     d = sub.add_parser(
         "demo",

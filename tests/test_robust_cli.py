@@ -166,7 +166,7 @@ def test_a_copy_of_a_recording_under_another_name_is_refused(folder, capsys, ver
 OVERWRITES = [
     (
         ["muscle", "muscle.json", "--json", "muscle.json"],
-        r"--json muscle\.json would overwrite the input --muscle",
+        r"--json muscle\.json would overwrite the input MUSCLE muscle\.json",
     ),
     (["muscle", "muscle.json", "--json", "./sub/../muscle.json"], r"would overwrite the input"),
     (["muscle", "muscle.json", "--json", "link.json"], r"would overwrite the input"),

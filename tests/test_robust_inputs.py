@@ -409,6 +409,8 @@ def test_an_empty_file_name_is_said_to_be_empty(tmp_path, capsys):
     (tmp_path / "r.csv").write_bytes((examples / "fam1_p45psi.csv").read_bytes())
     run_bad(["calibrate", "", "--muscle", "FAM1"], tmp_path, capsys, r"FILE: an empty file name")
     run_bad(["diagnose", "r.csv", "--muscle", ""], tmp_path, capsys, r"--muscle: an empty file name")
+    # efam muscle takes the muscle as a positional argument: no '--muscle' flag to name
+    run_bad(["muscle", ""], tmp_path, capsys, r"MUSCLE: an empty file name")
     run_bad(
         ["diagnose", "r.csv", "--muscle", "FAM1", "--json", " "],
         tmp_path,
