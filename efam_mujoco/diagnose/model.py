@@ -27,13 +27,14 @@ would remove is parameter error, not missing physics. So the diagnosis first re-
    so an effect is credited only with what the parameters cannot absorb.
 
 **The pressure the law is fitted to** is the measured one averaged where it holds still
-(``denoised_pressure``: a centred mean over a window chosen per sample, up to 2 s). The transducer's noise is an error in the
-fit's input: passed through the law's pressure slope it becomes force error, which a law with a
-flatter slope takes up in part (regression dilution), a constant beside it making up the level.
-On clean files of one slow stroke at one pressure the re-fit kept a load-cell zero of -1.8 N,
-4.9 standard errors from zero, and the diagnosis named ``force_offset`` at p 0.83-0.96; read
-averaged so it keeps none. Everything after the re-fit (the effects, the held-out
-folds, the noise floor) reads the pressure as measured.
+(``denoised_pressure``: a centred mean over a window chosen per sample, up to 2 s). The
+transducer's noise is an error in the fit's input: passed through the law's pressure slope it
+becomes force error, which a law with a flatter slope takes up in part (regression dilution), a
+constant beside it making up the level. On clean files of one slow stroke at one pressure the
+re-fit on the measured pressure kept a load-cell zero of -1.8 N, 4.9 standard errors from zero,
+and the diagnosis named ``force_offset`` at p 0.83-0.96; on the averaged pressure it keeps none.
+Everything after the re-fit (the effects, the held-out folds, the noise floor) reads the
+pressure as measured.
 
 The geometry stays within bounds that keep the muscle what it is (the braid angle on its side of
 35.26 deg, diameter within 10 %, bladder volume within 30 %).
