@@ -133,12 +133,12 @@ def _file_args(args) -> tuple[dict, dict]:
     if callable(names_out):  # outputs that depend on the other flags
         names_out = names_out(args)
 
-    # a command whose file argument is positional names it in capitals, as its usage line does
-    # (``efam muscle ""`` said '--muscle', a flag that command does not have)
+    # a command whose file argument is positional (``file_positionals``) names it in capitals, as
+    # its usage line does (``efam muscle ""`` said '--muscle', a flag that command does not have)
     positionals = set(getattr(args, "file_positionals", None) or ())
 
     def flag(name):
-        if name == "recording" or name in positionals:
+        if name in positionals:
             return name.upper()
         return "FILE" if name in ("files", "file") else "--" + name.replace("_", "-")
 
@@ -318,8 +318,6 @@ def _small_kilopascal_flags(args) -> bool:
     """Warn (once per flag, in kPa) of a pressure flag below 1 kPa (``--pressures-kPa 0.3``: kPa
     meant as MPa or bar?); True when one was. The kPa flags: every ``*_kPa`` destination and those a
     command lists in ``kpa_flags`` (``efam size --pressure``)."""
-    import math
-
     said = False
     names = [n for n in vars(args) if n.lower().endswith("_kpa")] + list(getattr(args, "kpa_flags", ()))
     for name in names:

@@ -187,16 +187,14 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
     label = shown_path(path)  # for messages; meta keeps the real name
     try:
         with open_recording(path, label) as handle:
-            rows = [(first, last, r) for first, last, r in csv_rows(handle, label)]
+            rows = list(csv_rows(handle, label))
+        if rows:
+            refuse_other_separators(rows[0][2], label, rows[0][0], _ACCEPTED)
     except RecordingError as err:
         raise ArmRecordingError(str(err)) from None
     if not rows:
         raise ArmRecordingError(f"{label}: no header line")
     head_line, _, header = rows[0]
-    try:
-        refuse_other_separators(header, label, head_line, _ACCEPTED)
-    except RecordingError as err:
-        raise ArmRecordingError(str(err)) from None
     roles = []
     seen = {}
     for c, raw in enumerate(header, 1):

@@ -150,7 +150,12 @@ def register_cli(subparsers) -> None:
         "--report", type=Path, help="directory: report.txt, diagnosis.json, arm_identified.xml, figures"
     )
     p.add_argument("--threads", type=int, default=None, help="rollout threads (default: the usable cores)")
-    p.set_defaults(run=run, file_inputs=("recording", "model"), file_outputs=("json", "report"))
+    p.set_defaults(
+        run=run,
+        file_inputs=("recording", "model"),
+        file_outputs=("json", "report"),
+        file_positionals=("recording",),
+    )
 
 
 def run(args) -> int:
