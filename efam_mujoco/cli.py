@@ -89,6 +89,9 @@ class _ExactSubparsers:
         # every type=float / type=int flag reads plain ASCII decimals, as the recordings do
         parser.register("type", float, plain_float)
         parser.register("type", int, plain_int)
+        # every type=Path argument keeps '' as typed: pathlib reads it as '.', and _file_args'
+        # empty-name check would see the current folder instead of the mistake
+        parser.register("type", Path, path_or_empty)
         return parser
 
     def __getattr__(self, name):
@@ -202,6 +205,14 @@ def plain_int(text: str) -> int:
     if not _WHOLE.fullmatch(text.strip()):
         raise argparse.ArgumentTypeError(f"takes a whole number in plain digits, got {text!r}")
     return int(text)
+
+
+def path_or_empty(text: str) -> Path | str:
+    """An argparse type: ``Path(text)``, except ``''``, returned as is. ``Path('')`` is
+    ``Path('.')``, the current folder, so a command would report ``'.' is a folder`` instead of
+    the empty argument; kept as ``''``, :func:`_file_args` names it (``--model: an empty file
+    name``) before the command runs."""
+    return Path(text) if text else text
 
 
 def bounded_int(low: int, high: int, what: str = ""):

@@ -419,6 +419,46 @@ def test_an_empty_file_name_is_said_to_be_empty(tmp_path, capsys):
     )
 
 
+# every type=Path argument: argparse had made '' the current folder ('.') before the check
+# (efam diagnose-arm "" said '.: is a folder, not a recording file'; efam arm --xml "" said
+# "--xml: '.' is not a file name")
+EMPTY_PATH_ARGUMENTS = [
+    (["diagnose-arm", "", "--model", "arm.xml"], "RECORDING"),
+    (["diagnose-arm", "rec.csv", "--model", ""], "--model"),
+    (["diagnose-arm", "rec.csv", "--model", "arm.xml", "--json", ""], "--json"),
+    (["diagnose-arm", "rec.csv", "--model", "arm.xml", "--report", ""], "--report"),
+    (["arm", "--xml", ""], "--xml"),
+    (["arm", "--pressures-kPa", "0", "0", "0", "--json", ""], "--json"),
+    (["arm", "--write-models", "--models-dir", ""], "--models-dir"),
+    (["suite", "--episodes", "1", "--json", ""], "--json"),
+    (["suite", "--episodes", "1", "--strip", ""], "--strip"),
+]
+
+
+@pytest.mark.parametrize(
+    ("argv", "name"), EMPTY_PATH_ARGUMENTS, ids=[f"{argv[0]} {name}" for argv, name in EMPTY_PATH_ARGUMENTS]
+)
+def test_an_empty_path_argument_is_said_to_be_empty(argv, name, tmp_path, capsys):
+    """Before: '' reached the command as Path('.') and the message named '.', not the argument."""
+    # real inputs beside the empty argument, so that it is the only mistake
+    (tmp_path / "arm.xml").write_bytes(
+        (Path(__file__).resolve().parents[1] / "models" / "arm_1x3.xml").read_bytes()
+    )
+    (tmp_path / "rec.csv").write_text("time_s,p_m0_kPa,tip_x_m,tip_y_m,tip_z_m\n0,0,0,0,0.1\n")
+    run_bad(argv, tmp_path, capsys, re.escape(f"efam {argv[0]}: error: {name}: an empty file name"))
+
+
+def test_a_path_argument_still_arrives_as_a_path():
+    """The empty-name check keeps '' as typed; every other value of a type=Path argument is
+    still a Path for the command's code."""
+    from efam_mujoco.cli import build_parser
+
+    args = build_parser().parse_args(["diagnose-arm", "rec.csv", "--model", "arm.xml", "--report", "out"])
+    assert (args.recording, args.model, args.report) == (Path("rec.csv"), Path("arm.xml"), Path("out"))
+    assert all(isinstance(v, Path) for v in (args.recording, args.model, args.report))
+    assert isinstance(build_parser().parse_args(["arm", "--xml", "a.xml"]).xml, Path)
+
+
 def test_calibrate_refuses_an_output_folder_before_the_fit(tmp_path, capsys, monkeypatch):
     """Before: `--out adir` (a folder) was refused only after the whole fit."""
     from efam_mujoco.calibrate import cli as calibrate_cli
