@@ -608,6 +608,38 @@ def test_a_relaxation_at_a_fixed_length_is_taken_by_the_bladder_branch():
     assert d.answer == "viscoelasticity"
 
 
+def test_a_long_transport_delay_is_fitted_as_a_delay():
+    # pressure steps through a 50 ms regulator in shuffled order, the length switched between
+    # two strains every 20 s; the muscle sees the measured pressure 0.2 s late (a long line),
+    # written here with numpy's interpolation, not the library's delay. With a delay grid that
+    # stopped at 0.08 s this was fitted as a 0.11 s delay plus a 0.13 s lag (held-out 4.1 N,
+    # ten times the noise)
+    muscle = load_muscle("FAM1")
+    rng = np.random.default_rng(3)
+    rest = muscle.rest_length_m
+    t = np.arange(0.0, 120.0, 0.01)
+    levels = rng.permutation(np.tile([100e3, 200e3, 300e3, 400e3, 500e3], 5))[:21]
+    set_point = levels[(t // 6).astype(int)]
+    pressure = np.empty_like(t)
+    pressure[0] = set_point[0]
+    for k in range(1, len(t)):
+        pressure[k] = pressure[k - 1] + (1 - math.exp(-0.01 / 0.05)) * (set_point[k] - pressure[k - 1])
+    wave = np.sin(2 * np.pi * t / 40.0)
+    length = rest * (1.2 + 0.15 * np.sign(wave) * np.minimum(1.0, 5.0 * np.abs(wave)))
+    seen = np.interp(t - 0.2, t, pressure, left=pressure[0])
+    recording = Recording(
+        t,
+        length + rng.normal(0.0, 1e-5, len(t)),
+        pressure + rng.normal(0.0, 700.0, len(t)),
+        muscle.push(seen, length) + rng.normal(0.0, 0.4, len(t)),
+    )
+    d = diagnose([recording], muscle, next_experiment=False)
+    assert d.answer == "pressure_lag" and d.names[0] == "pressure_lag"
+    lag = d.effects[0]["parameters"]
+    assert 0.15 < lag["delay_s"] < 0.25 and lag["tau_s"] < 0.05
+    assert d.heldout_rms_after_N < 3 * 0.4
+
+
 @pytest.mark.parametrize(
     "seed, family, clock, course",
     [(70182, "sinusoidal", 1.0, 1.0), (108193, "isometric", 0.0, -1.0)],

@@ -459,6 +459,17 @@ def test_a_path_argument_still_arrives_as_a_path():
     assert isinstance(build_parser().parse_args(["arm", "--xml", "a.xml"]).xml, Path)
 
 
+def test_the_suite_script_runs_the_efam_command_and_its_checks(tmp_path, capsys, monkeypatch):
+    """Before: ``python -m efam_mujoco.suite.cli`` built a parser of its own and skipped every
+    check of ``efam suite`` (an empty file name, an output over a folder)."""
+    from efam_mujoco.suite import cli as suite_cli
+
+    monkeypatch.chdir(tmp_path)
+    assert suite_cli.main(["--episodes", "1", "--json", ""]) == 2
+    assert capsys.readouterr().err.strip() == "efam suite: error: --json: an empty file name"
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_calibrate_refuses_an_output_folder_before_the_fit(tmp_path, capsys, monkeypatch):
     """Before: `--out adir` (a folder) was refused only after the whole fit."""
     from efam_mujoco.calibrate import cli as calibrate_cli

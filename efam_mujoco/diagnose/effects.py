@@ -821,7 +821,7 @@ class PressureLag(Effect):
                     0.0,
                     0.5,
                     True,
-                    (DELAY_FLOOR_S, 0.03, 0.08),  # the first: no delay (the floor, see delay_floor)
+                    (DELAY_FLOOR_S, 0.03, 0.08, 0.2),  # the first: no delay (the floor, see delay_floor)
                     "transport delay of the line",
                     default=0.0,
                 ),

@@ -149,12 +149,11 @@ def register_cli(subparsers) -> None:
 
 
 def main(argv=None) -> int:
-    """Run the suite evaluation as a script (``python -m efam_mujoco.suite.cli``); returns the exit status."""
-    parser = argparse.ArgumentParser(
-        prog="python -m efam_mujoco.suite.cli", description=__doc__.splitlines()[0]
-    )
-    _add_arguments(parser)
-    return _run(parser.parse_args(argv))
+    """``python -m efam_mujoco.suite.cli ...`` = ``efam suite ...`` (the same checks of numbers,
+    file names and output files, and the same one-line errors: the efam command line runs it)."""
+    from ..cli import main as efam_main
+
+    return efam_main(["suite", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":
