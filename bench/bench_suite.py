@@ -125,7 +125,7 @@ def random_steps(domain: str, task: str, steps: int = 1000, seed: int = 0) -> di
         if time_step.last():
             time_step = env.reset()
             episodes += 1
-        time_step = env.step(random.uniform(spec.minimum, spec.maximum))
+        time_step = env.step(random.uniform(spec.minimum, spec.maximum, size=spec.shape))
         finite &= all(np.all(np.isfinite(v)) for v in time_step.observation.values())
         rewards_ok &= 0.0 <= time_step.reward <= 1.0
     warnings = {

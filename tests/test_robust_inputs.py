@@ -367,6 +367,23 @@ def test_suite_actions_outside_the_pressure_range_are_said_not_silently_clipped(
         env.step(np.array([np.nan, 0.0, 0.0]))
 
 
+@pytest.mark.parametrize(
+    "action", [0.5, [0.5], [0.5, 0.5, 0.5, 0.5], [[0.5, 0.5, 0.5]]], ids=["scalar", "one", "four", "2-d"]
+)
+def test_suite_actions_of_another_shape_are_refused_by_name(action):
+    """Before: a single number was spread over all three muscles without a word, and a wrong
+    length ended in numpy's 'operands could not be broadcast together'."""
+    from efam_mujoco import suite
+
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0})
+    env.reset()
+    with pytest.raises(
+        ValueError, match=r"one pressure fraction per muscle, shape \(3,\) \(the action spec's\)"
+    ):
+        env.step(np.asarray(action))
+    env.step(np.full(3, 0.5))  # the right shape still steps
+
+
 def test_diagnose_in_python_checks_its_arguments():
     """Before: max_effects=-1 was accepted, laws='linear' was read letter by letter ('unknown
     stress law l'), and a muscle of None ended in an AttributeError deep inside."""

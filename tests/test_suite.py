@@ -20,7 +20,7 @@ TASKS = [pytest.param(d, t, id=f"{d}-{t}") for d, t in suite.ALL_TASKS]
 
 def random_policy(action_spec, seed):
     random = np.random.RandomState(seed)
-    return lambda time_step: random.uniform(action_spec.minimum, action_spec.maximum)
+    return lambda time_step: random.uniform(action_spec.minimum, action_spec.maximum, size=action_spec.shape)
 
 
 def trajectory(domain, task, seed, episodes=2, steps=10, **load_kwargs):

@@ -469,8 +469,15 @@ class EfamTask(base.Task):
     def before_step(self, action, physics):
         """Pressure fractions in [0, 1] to the actuators' controls. An action outside [0, 1] is
         clipped with a warning (once per task: saturation is never silent, as in the gym
-        wrapper); a non-finite one is an error (MuJoCo would take NaN controls)."""
+        wrapper); a non-finite one is an error (MuJoCo would take NaN controls), and so is one
+        of another shape than the action spec's (numpy would spread a single number over every
+        muscle without a word, and name a wrong length only as a broadcasting failure)."""
         action = getattr(action, "continuous_actions", action)
+        if np.shape(action) != physics.views.ctrl.shape:
+            raise ValueError(
+                f"action must hold one pressure fraction per muscle, shape {physics.views.ctrl.shape} "
+                f"(the action spec's), got shape {np.shape(action)}"
+            )
         low, high = np.min(action), np.max(action)
         if not (low >= 0.0 and high <= 1.0):
             if not (np.isfinite(low) and np.isfinite(high)):

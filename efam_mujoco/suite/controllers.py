@@ -163,7 +163,9 @@ class RandomPolicy:
         """Nothing to prepare."""
 
     def __call__(self, time_step) -> np.ndarray:
-        return self.random.uniform(self.spec.minimum, self.spec.maximum)
+        # one draw per muscle: dm_env keeps the bounds as scalars, and uniform(0, 1) alone is one
+        # number that the old step spread over every muscle (all pressures equal: never a bend)
+        return self.random.uniform(self.spec.minimum, self.spec.maximum, size=self.spec.shape)
 
 
 #: feedback gains (kp, ki in 1/s) by number of sections, tuned on the suite's domains: the
