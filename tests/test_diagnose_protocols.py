@@ -9,6 +9,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+from test_diagnose_refit import _regulated  # the first-order regulator the re-fit tests drive
 
 from efam_mujoco import load_muscle
 from efam_mujoco.diagnose import diagnose
@@ -620,10 +621,7 @@ def test_a_long_transport_delay_is_fitted_as_a_delay():
     t = np.arange(0.0, 120.0, 0.01)
     levels = rng.permutation(np.tile([100e3, 200e3, 300e3, 400e3, 500e3], 5))[:21]
     set_point = levels[(t // 6).astype(int)]
-    pressure = np.empty_like(t)
-    pressure[0] = set_point[0]
-    for k in range(1, len(t)):
-        pressure[k] = pressure[k - 1] + (1 - math.exp(-0.01 / 0.05)) * (set_point[k] - pressure[k - 1])
+    pressure = _regulated(t, set_point, 0.05)
     wave = np.sin(2 * np.pi * t / 40.0)
     length = rest * (1.2 + 0.15 * np.sign(wave) * np.minimum(1.0, 5.0 * np.abs(wave)))
     seen = np.interp(t - 0.2, t, pressure, left=pressure[0])
