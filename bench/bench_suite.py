@@ -117,15 +117,14 @@ def random_steps(domain: str, task: str, steps: int = 1000, seed: int = 0) -> di
     """``steps`` control steps of uniform random actions (across episode ends): MuJoCo's warning
     counters, finite observations, rewards in [0, 1]."""
     env = suite.load(domain, task, task_kwargs={"random": seed})
-    random = np.random.RandomState(seed)
-    spec = env.action_spec()
+    policy = controllers.RandomPolicy(env, seed)  # the suite's own random baseline
     time_step = env.reset()
     episodes, finite, rewards_ok = 1, True, True
     for _ in range(steps):
         if time_step.last():
             time_step = env.reset()
             episodes += 1
-        time_step = env.step(random.uniform(spec.minimum, spec.maximum, size=spec.shape))
+        time_step = env.step(policy(time_step))
         finite &= all(np.all(np.isfinite(v)) for v in time_step.observation.values())
         rewards_ok &= 0.0 <= time_step.reward <= 1.0
     warnings = {
