@@ -25,6 +25,7 @@ from efam_mujoco.diagnose.confidence import (
     none_probability,
     paired_log_z,
     paired_z,
+    separation,
     verdict,
 )
 from efam_mujoco.diagnose.design import candidates, recommend, unabsorbed
@@ -411,6 +412,33 @@ def test_a_pair_the_bootstrap_tells_apart_is_not_called_ambiguous():
     v = verdict({"drift": 0.55, "viscoelasticity": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40,
                 block_sse=even, dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
     assert v.ambiguous
+
+
+def test_a_runner_up_the_probabilities_rule_out_is_not_called_ambiguous():
+    # an effect halves the model's error in 3 of 40 blocks (a first loading) and is no better
+    # elsewhere: neither the paired test nor the head-to-head bootstrap (with the relevance
+    # margin an effect must beat none by) separates the two, but the model alone stands far above
+    # the noise floor, which the none map reads: p(none) is near 0, and "these data cannot
+    # separate softening and none (p = 0.46 and 0.00)" says something the probabilities deny.
+    # Odds of 3 decide, as between a named term and outside the library
+    rng = np.random.default_rng(7)
+    a = 1.0 + 0.03 * rng.normal(size=40)
+    none = a.copy()
+    none[[12, 25, 38]] *= 2.0
+    sse = {"none": none, "softening": a * (1 + 0.01 * rng.normal(size=40))}
+    assert abs(separation(sse, "softening", "none")) < 2.0
+    assert 0.05 < head_to_head(sse, "softening", "none") < 0.95
+    raw = {"none": 0.3, "softening": 0.7}
+    far = verdict(raw, excess_cut=0.5, dd_gain=0.0, n_blocks=40, excess=0.9, block_sse=sse,
+                  dd_z=0.0, dd_z_none=0.0, excess_left=0.1)  # fmt: skip
+    assert far.answer == "softening" and far.probabilities["none"] < 0.01
+    assert not far.confident and not far.ambiguous and far.tentative
+    # the same blocks with the model alone at the noise floor: none is a live rival, ambiguous
+    near = verdict(raw, excess_cut=0.5, dd_gain=0.0, n_blocks=40, excess=0.0, block_sse=sse,
+                   dd_z=0.0, dd_z_none=0.0, excess_left=0.1)  # fmt: skip
+    p = near.probabilities
+    assert 3 * p["none"] > p[near.answer] and near.ambiguous
+    assert set(near.contenders) == {"softening", "none"}
 
 
 def test_a_pair_kept_together_is_the_answer_not_an_ambiguity():

@@ -65,7 +65,11 @@ and differences of squared error then have a heavy tail whose spread hides a con
 advantage (the raw difference test is kept as ``paired_z`` for the data-driven gain). The
 bootstrap weighs blocks by their error instead; when it alone tells the two apart (a large
 error in a few blocks that one hypothesis removes), the answer's doubt is about its name (the
-probability map), not about the runner-up, and the report does not call it ambiguous. A library
+probability map), not about the runner-up, and the report does not call it ambiguous. Nor does
+it when the reported probabilities themselves put the runner-up ``ODDS_SEPARATE`` times behind:
+the none map reads what the bootstrap does not (how far the model alone stands above the noise
+floor), and a softening at p 0.46 against ``none`` at 0.00, the rest the doubt about the name,
+is not a pair these data cannot separate. A library
 hypothesis and ``outside the library`` cannot be separated when
 their posterior odds are below ``ODDS_SEPARATE`` (a Bayes factor under 3, "not worth more than a
 bare mention"). Only then is the result *ambiguous* and both are named (``design`` then proposes
@@ -90,7 +94,7 @@ PAIR = 0.0  # any split between the best two that leaves the first under CONFIDE
 OUTSIDE = "outside_library"
 Z_SEPARATE = 2.0  # paired z over blocks: two hypotheses this far apart are told apart
 SHARE_SEPARATE = 0.025  # head-to-head bootstrap: a runner-up winning under 2.5 % of draws is told apart
-ODDS_SEPARATE = 3.0  # posterior odds a named hypothesis needs over 'outside' to be told apart
+ODDS_SEPARATE = 3.0  # posterior odds that tell the answer apart from its runner-up (any two)
 DD_MIN_GAIN = 0.03  # the data-driven correction must lower the held-out RMS by 3 % ...
 EXCESS_UNEXPLAINED = 0.5  # ... or the held-out mean square stand 2x the noise's (RMS x 1.41)
 #: and, on top of the model alone, the structure it finds must be material: a held-out mean
@@ -481,7 +485,9 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
         z = separation(block_sse, answer, second)
         share = head_to_head(block_sse, answer, second, cal)
         apart = share is not None and min(share, 1.0 - share) < SHARE_SEPARATE
-        ambiguous = z is None or (abs(z) < Z_SEPARATE and not apart)
+        # ... and the posterior odds, which also weigh the maps (a none the excess over the noise
+        # rules out is no rival however alike the two predict held-out blocks)
+        ambiguous = (z is None or (abs(z) < Z_SEPARATE and not apart)) and p2 * ODDS_SEPARATE > p1
     both = bool(pair and {answer, second} == set(pair) and not confident)
     if both:
         # the pair predicts held-out data better than either alone (``select`` kept it): the two
