@@ -155,6 +155,10 @@ def _file_args(args) -> tuple[dict, dict]:
         if any(isinstance(v, (str, os.PathLike)) and not str(v).strip() for v in values):
             raise ValueError(f"{flag(n)}: an empty file name")
     inputs = {flag(n): existing(getattr(args, n, None)) for n in names_in}
+    # files an input names inside itself (an arm spec's muscles given by path) are inputs too
+    referenced = getattr(args, "file_inputs_referenced", None)
+    if callable(referenced):
+        inputs.update({label: existing(paths) for label, paths in referenced(args).items()})
     outputs = {flag(n): getattr(args, n, None) for n in names_out}
     if getattr(args, "mujoco_log", None) is not None:
         if not args.mujoco_log.strip() or Path(args.mujoco_log).is_dir():

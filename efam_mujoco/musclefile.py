@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from .files import strict_json, write_json_atomic
-from .muscle import DEFAULT_LOCK_STIFFNESS, Geometry, Muscle, MuscleError
-from .stress import LAW_NAMES, StressLaw, StressLawError
+from .muscle import DEFAULT_LOCK_STIFFNESS, NEUTRAL_BRAID_ANGLE_DEG, Geometry, Muscle, MuscleError
+from .stress import E1_PLAUSIBLE_PA, LAW_NAMES, StressLaw, StressLawError
 from .units import REQUIRED, UnitError, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.muscle/1"
@@ -98,6 +98,17 @@ def _reject_constant(name: str):
     raise ValueError(f"'{name}' is not a JSON number (use a finite number)")
 
 
+#: an integer with more digits than this is no count or value these files hold (a float()
+#: of it overflowed with Python's bare "int too large to convert to float")
+MAX_INTEGER_DIGITS = 15
+
+
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INTEGER_DIGITS:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits cannot be a value here")
+    return int(text)
+
+
 def _no_duplicates(pairs):
     seen = {}
     for key, value in pairs:
@@ -108,7 +119,7 @@ def _no_duplicates(pairs):
 
 
 def _where_refused(text: str) -> tuple[int, int]:
-    """(line, column) of the first NaN/Infinity token or key repeated in its object in ``text``
+    """(line, column) of the first NaN/Infinity token, over-long integer or key repeated in its object in ``text``
     (JSON the standard decoder accepts but the hooks refuse); (1, 1) when not found."""
     objects: list[set | None] = []  # per open bracket: the keys of an object, None for an array
     i, n = 0, len(text)
@@ -134,6 +145,13 @@ def _where_refused(text: str) -> tuple[int, int]:
             objects.pop()
         elif text.startswith(("NaN", "Infinity", "-Infinity"), i):
             break
+        elif c.isdigit() and not text[i - 1 : i].isdigit():
+            digits = len(text[i:]) - len(text[i:].lstrip("0123456789"))
+            follows = text[i + digits : i + digits + 1]
+            if digits > MAX_INTEGER_DIGITS and follows not in (".", "e", "E"):
+                break
+            i += digits
+            continue
         i += 1
     else:
         return 1, 1
@@ -154,7 +172,9 @@ def parse_json_text(data: bytes, label: str) -> object:
             "(save the file as UTF-8)"
         ) from None
     try:
-        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates)
+        return json.loads(
+            text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates, parse_int=_bounded_int
+        )
     except json.JSONDecodeError as err:
         raise MuscleFileError(
             f"{label}: line {err.lineno}, column {err.colno}: not valid JSON ({err.msg})"
@@ -401,6 +421,7 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             lock_stiffness_N_per_m=float(lock),
             name=str(doc.get("name", label)),
         )
+        check_tension_only(muscle, f"{label}: key 'tension_only' = true")
         check_finite_forces(muscle, f"{label}: stress law '{stress.name}'")
         for name, coefficients in doc["stress"]["laws"].items():  # every law, not only the one used
             if name != stress.name:
@@ -553,6 +574,16 @@ def stress_from_document(doc: dict, label: str, law: str | None = None) -> Stres
                     f"{label}: stress law '{other}': coefficient '{key}' = {value:g} cannot be physical "
                     f"(|value| above {MAX_COEFFICIENT:g}; a bladder's moduli are MPa)"
                 )
+        modulus = coefficients["E1_Pa"]  # every law's first coefficient: the bladder's modulus
+        low, high = E1_PLAUSIBLE_PA
+        if not low <= modulus <= high:
+            # a value in MPa or kPa written as Pa is the mistake a unit in the key's name invites
+            unit = next((u for u, f in (("MPa", 1e6), ("kPa", 1e3)) if low <= modulus * f <= high), None)
+            hint = f"; was it in {unit}?" if unit else ""
+            raise MuscleFileError(
+                f"{label}: stress law '{other}': coefficient 'E1_Pa' = {modulus:g} Pa cannot be physical for a "
+                f"bladder (its modulus lies in {low:g} .. {high:g} Pa: soft silicone to stiff rubber){hint}"
+            )
     return StressLaw.from_dict(name, block["laws"][name], where=f"{label}: stress law '{name}'")
 
 
@@ -566,6 +597,20 @@ def available_laws(source: str | Path) -> tuple[str, ...]:
     """The stress laws a preset or muscle file has coefficients for."""
     doc, label = read_document(source)
     return tuple(doc.get("stress", {}).get("laws", {}))
+
+
+def check_tension_only(muscle: Muscle, where: str) -> None:
+    """Refuse a tension-only extensile muscle (braid angle below the neutral 35.26 deg, the angle
+    of Eq. 3-4 here): it pushes
+    its ends apart when pressurised, so as tension-only it would carry no force at all in its
+    working range (the table of ``efam muscle`` read blocked force 40.7 N analytic, 0 N MuJoCo,
+    without a word). Tension-only is for contractile (McKibben) muscles, whose braid buckles."""
+    if muscle.tension_only and muscle.theta_rest_deg < NEUTRAL_BRAID_ANGLE_DEG:
+        raise MuscleFileError(
+            f"{where}, but the muscle is extensile (braid angle {muscle.theta_rest_deg:.4g} deg, below the "
+            f"neutral {NEUTRAL_BRAID_ANGLE_DEG:.2f} deg): it pushes its ends apart when pressurised and, "
+            "tension-only, would carry no force; tension-only is for contractile (McKibben) muscles"
+        )
 
 
 def muscle_document(muscle: Muscle, laws: dict[str, StressLaw] | None = None, **extra) -> dict:

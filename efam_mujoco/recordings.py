@@ -467,6 +467,7 @@ CHECKS = {
     "pressure-absolute": "absolute pressures in a gauge column (every value an atmosphere too high)",
     "pressure-unit": "pressures whose forces fit the model far better read in another unit (psi under 'kPa')",
     "force-range": "forces beyond what the muscle can produce",
+    "force-unit": "forces a unit factor off the muscle's model (lbf or kgf under 'N')",
     "force-dead": "a constant or dead force channel (load cell)",
     "force-sign": "a force channel whose sign is the other way round (push vs pull)",
     "force-model": "a force channel that does not follow length and pressure at all (noise, another test's column)",
@@ -491,6 +492,16 @@ TIME_UNITS = TIME
 #: as 10 s) still look like a slow recorder's; held-length (isometric) recordings are not judged.
 STROKE_SWEEP = 0.05
 MIN_STROKE_SPEED_M_PER_S = 10e-6
+#: ... and nowhere faster than this (over at least ``SPEED_WINDOW_S``, so that encoder noise
+#: between two samples a millisecond apart does not count): fast servo-hydraulic testers stroke
+#: at up to about 1 m/s; seconds written under ``time_ms`` make a 5 mm/s stroke read 5 m/s
+MAX_STROKE_SPEED_M_PER_S = 3.0
+SPEED_WINDOW_S = 0.02
+#: The least-squares scale from the model's force to the recorded one (where the model is
+#: trustworthy, ``FORCE_SCALE_REGION``): outside this range the force column is in another unit than its header says (lbf
+#: under 'N' reads 0.22, kgf 0.10, mN 1000) or the muscle is not the one tested; a muscle that
+#: differs from its file by tens of percent, with its friction and zero, stays well inside
+FORCE_SCALE_RANGE = (0.4, 2.5)
 #: A recorded force whose correlation with the model's (same lengths and pressures) is below
 #: minus this has its sign the other way round (effects and zeros keep it well above zero).
 SIGN_CORRELATION = 0.5
@@ -564,6 +575,38 @@ def _slow_strokes(rec: Recording, rest: float, tcol: str) -> str:
     )
 
 
+def _fast_strokes(rec: Recording, rest: float, tcol: str) -> str:
+    """A message when the length moves faster than ``MAX_STROKE_SPEED_M_PER_S`` over any span of
+    ``SPEED_WINDOW_S`` (or more, at a slow sampling rate): a time column in a larger unit than its
+    header says (seconds under ``time_ms``); else ''."""
+    L, t = rec.length_m, rec.time_s
+    if len(rec) < 3 or not float(np.ptp(L)) >= STROKE_SWEEP * rest:
+        return ""
+    interval = float(np.median(np.diff(t)))
+    lag = max(1, int(math.ceil(SPEED_WINDOW_S / interval))) if interval > 0 else 1
+    if lag >= len(rec):
+        return ""
+    with np.errstate(all="ignore"):
+        speed = np.abs(L[lag:] - L[:-lag]) / (t[lag:] - t[:-lag])
+    speed = speed[np.isfinite(speed)]
+    # the 99th percentile: one glitch of the encoder is not a stroke
+    fastest = float(np.percentile(speed, 99)) if speed.size else 0.0
+    if fastest <= MAX_STROKE_SPEED_M_PER_S:
+        return ""
+    base, unit = split_unit(tcol)
+    hint = ""
+    if unit in TIME_UNITS:  # the smallest larger unit under which it would move at bench speed
+        for larger in sorted(TIME_UNITS, key=TIME_UNITS.get):
+            if TIME_UNITS[larger] > TIME_UNITS[unit]:
+                if fastest * TIME_UNITS[unit] / TIME_UNITS[larger] <= MAX_STROKE_SPEED_M_PER_S:
+                    hint = f"; the numbers fit '{base}_{larger}'"
+                    break
+    return (
+        f"column '{tcol}': the muscle is stroked at {fastest:.3g} m/s, faster than a bench strokes a "
+        f"muscle (fast testers reach about 1 m/s; the limit here is {MAX_STROKE_SPEED_M_PER_S:g} m/s){hint}"
+    )
+
+
 def _pressure_unit_fit(muscle, F, P, L, aligned, column: str, rated_pressure_Pa: float):
     """(model RMS error as read, (unit, its RMS error) or None): the pressure unit other than
     ``column``'s under which ``muscle``'s force fits the recorded ``F`` best, when that is far
@@ -627,9 +670,9 @@ def check_plausibility(
                 f"samples every {MIN_INTERVAL_S:g} .. {MAX_INTERVAL_S:g} s{hint}"
             )))  # fmt: skip
         else:
-            slow = _slow_strokes(rec, rest, tcol)
-            if slow:
-                findings.append(Finding("time-unit", f"{src}: {slow}"))
+            odd = _slow_strokes(rec, rest, tcol) or _fast_strokes(rec, rest, tcol)
+            if odd:
+                findings.append(Finding("time-unit", f"{src}: {odd}"))
         # lengths: a unit mix-up first (then the other length checks would only repeat it)
         if not 0.1 < median_L / rest < 10:
             if split_unit(lcol)[0] == "displacement":
@@ -714,6 +757,20 @@ def check_plausibility(
             )))  # fmt: skip
         expected = float(np.ptp(model)) if model.size else 0.0
         spread = float(np.ptp(F))
+        if not big.any():  # a force beyond the muscle's reach is 'force-range' already
+            with np.errstate(all="ignore"):  # the same pressures at the resting length
+                blocked = np.asarray(free.push(Pc, np.full_like(Pc, rest)), dtype=float)
+            scale = _force_scale(Fc, aligned, blocked)
+            low, high = FORCE_SCALE_RANGE
+            if scale is not None and scale > 0 and expected > 5.0 and not low <= scale <= high:
+                fits = unit_that_fits(scale, 1.0, fcol, FORCE_UNITS, within=(0.7, 1.4))
+                hint = f"; the numbers fit '{fits}'" if fits else ""
+                findings.append(Finding("force-unit", (
+                    f"{src}: column '{fcol}': the recorded forces are {scale:.3g} x the muscle's model at the "
+                    f"recorded lengths and pressures (least squares where the model pulls or pushes at least "
+                    f"{FORCE_SCALE_REGION:.0%} of its blocked force): is the column's "
+                    f"unit right, or is --muscle not the muscle that was tested?{hint}"
+                )))  # fmt: skip
         if (
             spread == 0.0
             or len(np.unique(F[: min(len(F), 100000)])) <= 2
@@ -785,6 +842,30 @@ def check_plausibility(
 
 
 FORCE_UNITS = {**QUANTITIES["force"], "mN": 1e-3}
+
+
+#: ... judged only where the model force is at least this share of the blocked force at the
+#: same pressure: towards its free length a muscle's force falls to zero and the model's relative
+#: error grows without bound (a Festo DMSP held at 75 % of its contraction pulls 0.02-0.23 x what
+#: the nominal model says)
+FORCE_SCALE_REGION = 0.6
+
+
+def _force_scale(F, model, blocked) -> float | None:
+    """The least-squares scale s of ``F ~ s model`` over the samples where the model is
+    trustworthy: its force at least ``FORCE_SCALE_REGION`` of the blocked force at the same
+    pressure (``blocked``: the model at the resting length), and the muscle actuated. None with
+    fewer than 20 such samples (or under 5 % of the recording)."""
+    with np.errstate(all="ignore"):
+        use = (
+            np.isfinite(model) & np.isfinite(F) & np.isfinite(blocked) & (np.abs(blocked) > 0)
+            & (model * np.sign(blocked) >= FORCE_SCALE_REGION * np.abs(blocked))
+        )  # fmt: skip
+    if np.count_nonzero(use) < max(20, 0.05 * len(F)):
+        return None
+    m, f = model[use], F[use]
+    norm = float(np.dot(m, m))
+    return float(np.dot(f, m) / norm) if norm > 0 else None
 
 
 def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str = "--allow") -> None:

@@ -92,7 +92,10 @@ class LawSpec:
 _INF = math.inf
 _E1 = (0.0, _INF, True, False)  # E1 > 0: a Young's-modulus-like stiffness (paper: 1-5 MPa)
 _E2 = (0.0, _INF, False, False)  # E2 >= 0: pressure stiffens the bladder (paper Sec. 4.7)
-_E1_SEARCH = (1e4, 5e7)
+#: the bladder moduli a muscle can have (Pa): soft silicone to stiff rubber; the calibration
+#: searches inside it, and a muscle file's E1 outside it is refused (an MPa value written as Pa)
+E1_PLAUSIBLE_PA = (1e4, 5e7)
+_E1_SEARCH = E1_PLAUSIBLE_PA
 _E2_SEARCH = (0.0, 20.0)
 
 LAWS: dict[str, LawSpec] = {

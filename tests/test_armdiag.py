@@ -487,3 +487,36 @@ def test_long_recording_is_searched_on_its_window_and_judged_whole(spec):
     err = np.linalg.norm(d.tip_after - rec.tip_m, axis=1)
     inside, beyond = np.nanmean(err[~late & rec.valid]), np.nanmean(err[late & rec.valid])
     assert beyond < 2 * inside + 1e-3 and d.heldout_rms_after_m < 0.5 * d.heldout_rms_nominal_m
+
+
+@pytest.mark.parametrize("pattern", ["all equal", "vented first", "one muscle never used"])
+def test_location_bins_a_test_never_visits_are_left_out_not_nan(pattern):
+    # valid arm tests leave some location bins empty: every muscle commanded alike (no muscle
+    # ever dominant, and the pressure thirds cut through equal values), the low third all vented,
+    # a muscle never commanded. Such a bin was NaN, and the JSON writer refused the finished
+    # diagnosis ("$.located.by_dominant_muscle_m.s1m2 is nan")
+    from efam_mujoco.armdiag.locate import locate
+
+    rng = np.random.default_rng(0)
+    n, muscles = 600, ["s1m1", "s1m2", "s1m3"]
+    t = np.linspace(0.0, 12.0, n)
+    ramp = 200e3 * (1 - np.cos(2 * np.pi * t / 6.0)) / 2
+    command = np.column_stack([ramp, ramp, ramp])
+    if pattern == "vented first":
+        command[: int(0.4 * n)] = 0.0
+        command[:, 1] *= 0.5
+    elif pattern == "one muscle never used":
+        command[:, 1] = ramp[::-1]
+        command[:, 2] = 0.0
+    residual = rng.normal(0.0, 5e-4, (n, 3))
+    valid = np.ones(n, dtype=bool)
+    directions = {f"{m}:gain": rng.normal(0.0, 1e-3, (n, 3)) for m in muscles}
+    out = locate(t, command, muscles, [[0, 1, 2]], residual, valid, 5e-4, directions)
+    text = json.dumps(out, allow_nan=False)  # raises on any NaN
+    assert "nan" not in " ".join(out["summary"]).lower()
+    if pattern == "all equal":
+        assert all(v is None for v in out["by_dominant_muscle_m"].values())
+    if pattern == "one muscle never used":
+        assert out["by_dominant_muscle_m"]["s1m3"] is None
+        assert out["by_dominant_muscle_m"]["s1m1"] is not None
+    assert "by mean pressure" in text

@@ -6,6 +6,7 @@ for minutes bounded before or while they run."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -150,6 +151,54 @@ def test_diagnose_arm_refuses_metres_under_a_millimetre_header(lab, capsys):
     path.write_text("\n".join(lines) + "\n")
     run_bad(["diagnose-arm", str(path), "--model", model], folder, capsys,
             r"'tip_x_mm', 'tip_y_mm', 'tip_z_mm'", r"stays within .* of the arm's base", r"'tip_x_m'")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "name, change, words",
+    [
+        # MPa (or bar) under a kPa header: no command passes the dead band; was diagnosed "none"
+        (
+            "mpa.csv",
+            {"command_factor": 1e-3},
+            [r"largest command of any muscle is 0\.\d+ kPa", r"'p_s1m\d_MPa'"],
+        ),
+        (
+            "bar.csv",
+            {"command_factor": 1e-2},
+            [r"under 5% of the model's highest pressure", r"'p_s1m\d_bar'"],
+        ),
+        # a tip in another unit that keeps it a sixth of the arm's length from the base (cm under
+        # 'mm'): passed the old tenth, and a weak muscle was named
+        ("near.csv", {"tip_factor": 0.15}, [r"stays within .* of the arm's base", r"at least 0\.3 x"]),
+        # seconds under 'time_ms': a 6 s test read as 6 ms, was diagnosed
+        (
+            "short.csv",
+            {"header": ("time_s", "time_ms")},
+            [r"spans 0\.00\d+ s, shorter than the 0\.5 s", r"'time_s'"],
+        ),
+    ],
+)
+def test_diagnose_arm_refuses_commands_tips_and_times_in_another_unit(lab, capsys, name, change, words):
+    folder, model = lab[0], lab[1]
+    header = change.pop("header", None)
+    csv = _variant(lab, name, **change)
+    if header:
+        text = Path(csv).read_text()
+        Path(csv).write_text(text.replace(header[0], header[1], 1))
+    run_bad(["diagnose-arm", csv, "--model", model], folder, capsys, *words)
+
+
+def test_diagnose_arm_refuses_a_frozen_marker(lab, capsys):
+    """A tip column that never changes while the commands do was diagnosed (a weak muscle named)."""
+    folder, model, _, rec = lab
+    frozen = np.broadcast_to(rec.tip_m[0], rec.tip_m.shape).copy()
+    csv = write_csv(folder / "frozen.csv", ArmRecording(rec.time_s, rec.muscles, rec.command_Pa, frozen))
+    run_bad(
+        ["diagnose-arm", csv, "--model", model],
+        folder,
+        capsys,
+        r"the tip never moves .* a frozen or lost marker",
+    )
 
 
 def test_diagnose_arm_refuses_a_tip_value_no_arm_can_have(lab, capsys):
@@ -351,6 +400,36 @@ def test_diagnose_arm_report_into_a_users_folder_is_refused_before_the_work(lab,
     assert (mine / "report.txt").read_text() == "my precious report"
 
 
+@pytest.mark.parametrize("flag", ["--json", "--report"])
+def test_diagnose_arm_never_writes_over_a_muscle_file_its_spec_names(lab, tmp_path, capsys, flag):
+    """An arm spec may name its muscles by file path; ``--json`` that same path replaced the
+    user's calibrated muscle file with the diagnosis (and ``--report`` a folder holding it)."""
+    folder, model, spec, rec = lab
+    recording = tmp_path / "rec.csv"
+    write_csv(recording, rec)
+    (tmp_path / "muscles").mkdir()
+    muscle = tmp_path / "muscles" / "mine.json"
+    muscle.write_text(_muscle_file_text())
+    doc = json.loads(Path(model).read_text())
+    doc["sections"][0]["muscles"] = ["muscles/mine.json"] * len(doc["sections"][0]["muscles"])
+    spec_path = tmp_path / "arm_by_path.json"
+    spec_path.write_text(json.dumps(doc))
+    before = muscle.read_bytes()
+    target = "muscles/mine.json" if flag == "--json" else "muscles"
+    code, _, err = run_cli(
+        ["diagnose-arm", "rec.csv", "--model", "arm_by_path.json", flag, target], tmp_path, capsys
+    )
+    assert code == 2, err
+    assert "would overwrite the input --model arm_by_path.json: sections[0].muscles[0]" in err
+    assert muscle.read_bytes() == before
+
+
+def _muscle_file_text() -> str:
+    from efam_mujoco.musclefile import load_muscle, muscle_document
+
+    return json.dumps(muscle_document(load_muscle("FAM1")))
+
+
 @pytest.mark.parametrize(
     "make, words",
     [
@@ -362,6 +441,11 @@ def test_diagnose_arm_report_into_a_users_folder_is_refused_before_the_work(lab,
             "key 'gravity' must be a JSON boolean",
         ),  # 'no' was taken as true
         (lambda p: p.write_text('{"format": "x", "payload_kg": 0, "payload_kg": 5}'), "appears twice"),
+        # was Python's bare "int too large to convert to float", naming neither file nor place
+        (
+            lambda p: p.write_text('{"format": "efam_mujoco.arm_spec/1",\n "payload_kg": ' + "9" * 400 + "}"),
+            r"arm\.json: line 2, column 16: not valid JSON \(an integer of 400 digits cannot be a value here\)",
+        ),
     ],
 )
 def test_arm_spec_files_are_read_as_strictly_as_muscle_files(tmp_path, make, words):
@@ -446,3 +530,14 @@ def test_a_section_takes_numbers_of_any_numeric_type():
                               angles_deg=np.array([0.0, 120.0, 240.0]), end_mass_kg=Decimal("0.01"))  # fmt: skip
     assert section.radius_m == 0.02 and type(section.radius_m) is float and section.disks == 4
     assert section.angles_deg == (0.0, 120.0, 240.0)
+
+
+def test_arm_refuses_its_pressures_before_it_writes_the_xml(tmp_path, capsys):
+    """``efam arm --xml FILE --pressures-kPa`` with the wrong count replaced the user's FILE and
+    only then refused the pressures."""
+    mine = tmp_path / "arm_prev.xml"
+    mine.write_text("<mujoco>my edited arm</mujoco>")
+    code, _, err = run_cli(["arm", "--sections", "2", "--disks", "2", "--xml", "arm_prev.xml",
+                            "--pressures-kPa", "100", "100", "100"], tmp_path, capsys)  # fmt: skip
+    assert code == 2 and "--pressures-kPa: need 6 finite pressures" in err
+    assert mine.read_text() == "<mujoco>my edited arm</mujoco>"

@@ -242,6 +242,13 @@ OVERWRITES = [
         ["calibrate", "rec.csv", "--muscle", "FAM1", "--out", "o.json", "--figures", "notes.txt/f"],
         r"--figures .*notes\.txt is a file",
     ),
+    # a folder as the prefix wrote 'sub/_blocked.png' (and '--figures .' the hidden '._blocked.png')
+    (
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "sub"],
+        r"--figures sub: is a folder; give a prefix",
+    ),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "."], r"e\.g\. fam1 writes fam1_blocked\.png"),
+    (["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "new/"], r"--figures new/: is a folder"),
     (
         ["diagnose", "rec.csv", "--muscle", "FAM1", "--report", "notes.txt/r"],
         r"--report notes\.txt/r: notes\.txt is a file",

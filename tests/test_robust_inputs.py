@@ -219,6 +219,75 @@ def test_ms_written_as_time_s_is_refused_by_the_stroke_speed(tmp_path, capsys):
     assert len(re.findall(r"\[time-unit\]", err)) == 2
 
 
+def _write_columns(path: Path, header: str, *columns) -> None:
+    """A CSV of ``columns`` under ``header`` as written (no unit conversion)."""
+    np.savetxt(path, np.column_stack(columns), delimiter=",", header=header, comments="", fmt="%.9g")
+
+
+def test_seconds_written_as_time_ms_are_refused_by_the_stroke_speed(tmp_path, capsys):
+    # the other way round from the test above: seconds under 'time_ms' make every interval 1000
+    # times shorter (10 ms reads 10 us, still a recorder's) and the paper's 5.1 mm/s strokes read
+    # 5.1 m/s; every time constant the diagnosis fitted came out 1000 times off, without a word
+    muscle = load_muscle("FAM1")
+    recs = synthesize(muscle, pressures_Pa=(206.8e3, 413.7e3), rate_Hz=100.0)
+    for i, r in enumerate(recs):
+        _write_columns(tmp_path / f"s{i}.csv", "time_ms,length_m,pressure_kPa,force_N",
+                       r.time_s, r.length_m, r.pressure_Pa / 1e3, r.force_N)  # fmt: skip
+    run_bad(["diagnose", "--muscle", "FAM1", "s0.csv", "s1.csv"], tmp_path, capsys,
+            r"\[time-unit\] s0\.csv: column 'time_ms': the muscle is stroked at 5\.\d+ m/s", r"'time_s'")  # fmt: skip
+    # and a fast tester's strokes (0.5 m/s, sampled at 1 kHz) are a bench's
+    fast = synthesize(muscle, pressures_Pa=(206.8e3,), rate_Hz=1000.0, speed_m_per_s=0.5)
+    assert not [f for f in check_plausibility(fast, muscle) if f.check == "time-unit"]
+
+
+@pytest.mark.parametrize(
+    "unit, factor, hint", [("lbf", 4.4482216152605, "'force_lbf'"), ("kgf", 9.80665, None)]
+)
+def test_a_force_in_another_unit_under_force_N_is_refused(tmp_path, capsys, unit, factor, hint):
+    # a load cell logging lbf (or kgf) under a 'force_N' header passed every check: calibrate
+    # wrote a muscle with its braid angle at 33 deg and every law at its bound, and diagnose named
+    # a drift at p 0.83
+    muscle = load_muscle("FAM1")
+    recs = synthesize(muscle, pressures_Pa=(206.8e3, 413.7e3), rate_Hz=20.0)
+    assert not check_plausibility(recs, muscle)
+    for i, r in enumerate(recs):
+        write_csv(
+            tmp_path / f"{unit}{i}.csv", Recording(r.time_s, r.length_m, r.pressure_Pa, r.force_N / factor)
+        )
+    words = [
+        r"\[force-unit\] "
+        + unit
+        + r"0\.csv: column 'force_N': the recorded forces are 0\.\d+ x the muscle's model"
+    ]
+    err = run_bad(["calibrate", "--muscle", "FAM1", f"{unit}0.csv", f"{unit}1.csv"], tmp_path, capsys, *words)
+    assert (hint in err) if hint else ("the numbers fit" not in err)
+
+
+def test_real_muscles_held_near_their_full_contraction_pass_the_force_scale():
+    # a Festo DMSP-10 held at 75 % of its contraction pulls 0.02-0.23 x what the nominal model
+    # says (the model's relative error grows without bound towards the free length): judged only
+    # where the model gives at least 60 % of its blocked force, no real file is called a unit
+    # mix-up
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "scripts"))
+    try:
+        import festo_diagnose as fd
+    finally:
+        sys.path.pop(0)
+    if not (fd.DATA / "recordings.json").exists():
+        pytest.skip("real Festo data absent")
+    from efam_mujoco.recordings import read_csv
+
+    meta = json.loads((fd.DATA / "recordings.json").read_text())
+    for key, files in fd.groups(meta).items():
+        recs = [read_csv(fd.DATA / "recordings" / name, on_bad_rows="drop") for name in files]
+        muscle = fd.starting_muscle(key, files, meta, recs)
+        for rec in recs:  # each file alone, as a user may diagnose it
+            assert not [f.message for f in check_plausibility([rec], muscle) if f.check == "force-unit"]
+
+
 def test_held_length_and_slow_sampled_recordings_still_pass_the_stroke_speed():
     muscle = load_muscle("FAM1")
     n = 2000
@@ -237,6 +306,15 @@ def test_held_length_and_slow_sampled_recordings_still_pass_the_stroke_speed():
         (lambda d: d.update(surprise=1), "unknown key 'surprise'"),
         (lambda d: d["tubings"].append(dict(d["tubings"][0])), "is given to 2 entries"),
         (lambda d: d["sleeves"][0].pop("fibre_fraction"), "missing key 'fibre_fraction'"),
+        # was an internal error ('int' object is not iterable) or dict()'s own words
+        (lambda d: d.update(sources=5), "'sources' must be a JSON object"),
+        (lambda d: d.update(sources=None), "'sources' must be a JSON object"),
+        (lambda d: d.update(sources=["a paper"]), "'sources' must be a JSON object"),
+        (lambda d: d.update(sources="a paper"), "'sources' must be a JSON object"),
+        (
+            lambda d: d["latex"].update(density_kg_per_m3=10**40),
+            r"line 1, column \d+: .*integer of 41 digits",
+        ),
     ],
 )
 def test_catalogue_keys_are_known_names_unique_and_present(tmp_path, edit, words):

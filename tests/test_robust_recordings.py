@@ -4,6 +4,7 @@ the input byte-identical and no file written."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 
@@ -16,6 +17,7 @@ from efam_mujoco.musclefile import load_muscle
 from efam_mujoco.recordings import (
     CHECKS,
     PlausibilityError,
+    Recording,
     RecordingError,
     check_plausibility,
     decimate,
@@ -328,11 +330,22 @@ def test_blocked_force_left_at_one_pressure_level_is_refused():
 
 
 def test_tension_only_on_pushing_data(tmp_path, capsys):
+    # an extensile muscle declared tension-only is refused before its data are read (it would
+    # carry no force at all) ...
     path = _write(tmp_path, good_text())
     for command in ("calibrate", "diagnose"):
-        run_bad(
-            [command, path.name, "--muscle", "FAM1", "--tension-only"], tmp_path, capsys, r"\[tension-only\]"
-        )
+        run_bad([command, path.name, "--muscle", "FAM1", "--tension-only"], tmp_path, capsys,
+                r"--tension-only with --muscle FAM1, but the muscle is extensile \(braid angle 12\.5")  # fmt: skip
+    # ... and a contractile tension-only muscle recorded pushing fails the plausibility check
+    from efam_mujoco.muscle import Muscle
+    from efam_mujoco.stress import StressLaw
+
+    mckibben = Muscle(0.25, 0.014, 65.0, 2.0e-6, 40e3, StressLaw("linear", (2.0e6, 1.5)), tension_only=True)
+    t = np.linspace(0.0, 20.0, 400)
+    P, L = np.linspace(0.0, 300e3, 400), np.full_like(t, 0.25)
+    pulls = np.asarray(dataclasses.replace(mckibben, tension_only=False).tension(P, L))
+    pushing = Recording(t, L, P, pulls)  # its tension recorded as a push (force_N = -tension)
+    assert [f.check for f in check_plausibility([pushing], mckibben)].count("tension-only") == 1
 
 
 def test_allow_turns_an_error_into_a_named_warning():

@@ -274,7 +274,29 @@ def test_cli_infeasible_exits_1_with_relaxation(capsys):
     "extra, message",
     [
         (["--stroke", "98", "--force", "10", "--pressure", "400"], "--stroke must be in (0, 5]"),
-        (["--stroke", "0.5", "--force", "ten", "--pressure", "400"], "--force takes a number in N"),
+        (
+            ["--stroke", "0.5", "--force", "ten", "--pressure", "400"],
+            "--force takes a plain decimal number in N",
+        ),
+        # float() and int() read these; no other command's number flag does
+        (["--stroke", "0.5", "--force", "10", "--pressure", "5_00"], "got '5_00'"),
+        (
+            ["--stroke", "0.5", "--force", "10", "--pressure", "\uff15\uff10\uff10"],
+            "--pressure takes a plain decimal",
+        ),
+        (
+            ["--stroke", "0.5", "--force", "10", "--pressure", "400", "--bundle", "\uff13"],
+            "--bundle takes a whole",
+        ),
+        (
+            ["--stroke", "0.5", "--force", "10", "--pressure", "400", "--top", "1_0"],
+            "--top: takes a whole number",
+        ),
+        # the arm's own payload limit, named by the flag (was "arm: payload_kg = 1000.0 is outside")
+        (
+            ["--stroke", "0.5", "--force", "10", "--pressure", "400", "--bundle", "3", "--payload", "60"],
+            "--payload must be in [0, 50] kg",
+        ),
         (["--stroke", "0.5", "--force", "10", "--pressure", "-5"], "--pressure must be in (0, 1000] kPa"),
         (["--stroke", "0.5", "--force", "10", "--pressure", "nan"], "--pressure"),
         (["--stroke", "0.5", "--force", "10", "--pressure", "400", "--max-diameter", "0"], "mm"),

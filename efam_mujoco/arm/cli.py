@@ -267,14 +267,17 @@ def _run(args) -> int:
             "as the cube: minutes to hours, in calls Ctrl-C cannot interrupt); use fewer disks (the continuum "
             "reference does not depend on them) or sections, or pass --allow-large"
         )
-    if args.xml:
-        write_text_atomic(args.xml, arm_xml(spec))
-        print(f"wrote {args.xml} (its time step: custom numeric {NUMERIC_NAME!r})")
+    # every argument is checked before anything is written: a refused --pressures-kPa had
+    # already replaced the user's --xml file
     if args.pressures_kPa:
         count = sum(len(s.muscles) for s in spec.sections)
         pressures = np.asarray(args.pressures_kPa) * 1e3
         if pressures.size != count or not np.all(np.isfinite(pressures)) or np.any(pressures < 0):
             raise ValueError(f"--pressures-kPa: need {count} finite pressures >= 0, got {args.pressures_kPa}")
+    if args.xml:
+        write_text_atomic(args.xml, arm_xml(spec))
+        print(f"wrote {args.xml} (its time step: custom numeric {NUMERIC_NAME!r})")
+    if args.pressures_kPa:
         sizes = np.cumsum([len(s.muscles) for s in spec.sections])[:-1]
         result = equilibrium(spec, np.split(pressures, sizes))
         mujoco_mm = np.round(1e3 * np.array(result["tip_mujoco_m"]), 2)

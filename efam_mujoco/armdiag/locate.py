@@ -23,8 +23,14 @@ def noise_floor(time_s: np.ndarray, tip_m: np.ndarray) -> float:
     return float(np.sqrt(np.mean(mad**2)) / np.sqrt(6.0))
 
 
-def _rms(x):
-    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
+def _rms(x) -> float | None:
+    """RMS of the rows ``x``; None when there are none (a bin the test never visited: a muscle
+    never commanded above the others, a pressure level every row shares with the next)."""
+    return float(np.sqrt(np.mean(x**2))) if x.size else None
+
+
+def _mm(v: float | None) -> str:
+    return "no samples" if v is None else f"{v * 1e3:.2f} mm"
 
 
 def locate(
@@ -57,7 +63,11 @@ def locate(
             "mean_pressure_kPa": float(mean_p[rows].mean() / 1e3) if rows.any() else None,
             "rms_m": _rms(residual[rows]),
         }
-    dominant = np.argmax(command_Pa - command_Pa.mean(1, keepdims=True), axis=1)
+    # the muscle commanded furthest above the others; none where the commands are (nearly) all
+    # equal (within 1 % of the test's top command), which would credit every such row to muscle 0
+    spread = command_Pa - command_Pa.mean(1, keepdims=True)
+    dominant = np.argmax(spread, axis=1)
+    dominant[spread.max(axis=1) <= 0.01 * max(float(np.max(command_Pa)), 1e-300)] = -1
     by_dominant = {muscles[i]: _rms(residual[valid & (dominant == i)]) for i in range(len(muscles))}
     explained = {}
     for name, d in directions.items():
@@ -69,14 +79,17 @@ def locate(
         explained[name] = float(np.sum(rk * d) ** 2 / (nd * energy)) if nd > 0 else 0.0
     by_muscle = {m: max(explained.get(f"{m}:{kind}", 0.0) for kind in ("gain", "lag")) for m in muscles}
     by_section = {f"section {j + 1}": max(by_muscle[muscles[i]] for i in g) for j, g in enumerate(groups)}
-    worst = max(in_time, key=lambda b: b["rms_m"])
+    worst = max((b for b in in_time if b["rms_m"] is not None), key=lambda b: b["rms_m"], default=None)
     top_muscle = max(by_muscle, key=by_muscle.get) if by_muscle else None
-    summary = [
-        f"residual RMS {_rms(residual[valid]) * 1e3:.2f} mm against a marker noise of {noise * 1e3:.2f} mm",
-        f"largest in {worst['from_s']:.1f}-{worst['to_s']:.1f} s ({worst['rms_m'] * 1e3:.2f} mm)",
-        "by mean pressure: " + ", ".join(f"{k} {v['rms_m'] * 1e3:.2f} mm" for k, v in by_level.items()),
-    ]
-    if top_muscle is not None:
+    summary = [f"residual RMS {_mm(_rms(residual[valid]))} against a marker noise of {noise * 1e3:.2f} mm"]
+    if worst is not None:
+        summary.append(f"largest in {worst['from_s']:.1f}-{worst['to_s']:.1f} s ({_mm(worst['rms_m'])})")
+    # a level no row falls in (every command equal, or the low third all vented) is left out
+    levels = [f"{k} {_mm(v['rms_m'])}" for k, v in by_level.items() if v["rms_m"] is not None]
+    summary.append("by mean pressure: " + ", ".join(levels))
+    if top_muscle is not None and by_muscle[top_muscle] < 0.005:
+        summary.append("no muscle's pressure or lag direction explains any of it")
+    elif top_muscle is not None:
         summary.append(
             f"best explained by muscle {top_muscle} ({by_muscle[top_muscle]:.0%} of the residual energy "
             f"along its pressure or lag direction); by section: "

@@ -77,6 +77,10 @@ class ArmRecordingWarning(UserWarning):
 #: as more than 4 h; shorter mix-ups are caught by the replay bound of the diagnosis
 #: (:data:`efam_mujoco.armdiag.diagnosis.MAX_REPLAY_STEPS`).
 MAX_DURATION_S = 4 * 3600.0
+#: ... and at least this long: an arm's tip takes tenths of a second to follow a command (its
+#: regulators' lag, its first bending mode), so a shorter test shows nothing of the arm, and
+#: seconds written under 'time_ms' make a 6 s test read 6 ms
+MIN_DURATION_S = 0.5
 #: Commands up to this multiple of the model's highest pressure (the actuators' control range, the
 #: arm's rated pressure) are replayed at that pressure with a warning (a regulator overshooting
 #: the rating); beyond it a value cannot be a command for this arm (Pa under a kPa header, psi
@@ -89,9 +93,15 @@ COMMAND_REFUSE_FACTOR = 2.0
 REACH_FACTOR = 10.0
 #: A tip whose median distance from the base is under this share of the arm's rest length never
 #: left the base: an EFAM arm only lengthens, and bent into a half circle its tip is still 2/pi of
-#: its length away, so a recording whose tip stays within a tenth of it holds another unit (metres
-#: under a 'mm' or 'cm' header) or another marker.
-MIN_REACH_SHARE = 0.1
+#: its length away, so a recording whose tip stays within 0.3 of it holds another unit (metres
+#: under a 'mm' or 'cm' header, centimetres under 'mm': 0.1 x) or another marker.
+MIN_REACH_SHARE = 0.3
+#: Commands that never reach this share of the model's highest pressure drive nothing (below
+#: any EFAM's dead band): MPa or bar written under a 'kPa' header (0.1-1 % of it).
+MIN_COMMAND_SHARE = 0.05
+#: A tip whose every coordinate spans less than this (m) while the commands change never moved:
+#: a motion tracker's noise alone spans tens of micrometres
+FROZEN_TIP_M = 1e-6
 #: The sample interval a unit hint aims for: arm tip trackers sample at 30-200 Hz.
 TYPICAL_INTERVAL_S = 0.01
 
@@ -352,6 +362,49 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
                 f"pressure {top / shown:g} {unit} (up to {np.max(p) / shown:g} {unit}, first at "
                 f"{_line(rec, int(over[0]))}); they are replayed at {top / shown:g} {unit}"
             )
+    finite = np.isfinite(max_Pa)
+    if finite.any() and rec.command_Pa.size:
+        highest = float(np.nanmax(rec.command_Pa))
+        top = float(np.max(max_Pa[finite]))
+        if highest < MIN_COMMAND_SHARE * top:
+            name = columns[int(np.nanargmax(np.nanmax(rec.command_Pa, axis=0)))]
+            unit = split_unit(name)[1]
+            shown = PRESSURE.get(unit, 1.0)
+            unit = unit if unit in PRESSURE else "Pa"
+            fits = [u for u in PRESSURE if MIN_COMMAND_SHARE * top <= highest / shown * PRESSURE[u] <= top]
+            hint = ""
+            if fits:  # the unit that puts the largest command nearest the top pressure
+                best = max(fits, key=lambda u: PRESSURE[u])
+                hint = f"; was it {best}? the numbers fit '{split_unit(name)[0]}_{best}'"
+            raise ArmRecordingError(
+                f"{src}: column '{name}': the largest command of any muscle is {highest / shown:g} {unit}, under "
+                f"{MIN_COMMAND_SHARE:.0%} of the model's highest pressure {top / shown:g} {unit}: below any "
+                f"EFAM's dead band, the arm never moves" + hint
+            )
+    # a test the arm cannot follow (checked here, not by the reader: a few rows are a file)
+    duration = float(rec.time_s[-1] - rec.time_s[0]) if len(rec) else 0.0
+    if duration < MIN_DURATION_S:
+        column = rec.meta.get("time_column") or "time_s"
+        interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
+        raise ArmRecordingError(
+            f"{src}: column '{column}': the recording spans {duration:.4g} s, shorter than the "
+            f"{MIN_DURATION_S:g} s an arm's tip needs to follow a command (a time unit mix-up?)"
+            + unit_hint(column, interval, TYPICAL_INTERVAL_S, TIME)
+        )
+    # a marker that never moves while the commands do: frozen, or another body's
+    spans = (
+        np.nanmax(rec.tip_m, axis=0) - np.nanmin(rec.tip_m, axis=0) if np.isfinite(rec.tip_m).any() else None
+    )
+    if (
+        spans is not None
+        and float(np.max(spans)) < FROZEN_TIP_M
+        and float(np.nanmax(np.ptp(rec.command_Pa, axis=0))) > 0
+    ):
+        tip_columns = rec.meta.get("tip_columns") or ["tip_x_m", "tip_y_m", "tip_z_m"]
+        raise ArmRecordingError(
+            f"{src}: columns {', '.join(repr(c) for c in tip_columns)}: the tip never moves (by at most "
+            f"{float(np.max(spans)) * 1e6:.3g} um) while the commands change: a frozen or lost marker?"
+        )
     if not rest_reach_m > 0:  # a model without a length (tip on the base): nothing to compare with
         return notes
     limit = REACH_FACTOR * float(rest_reach_m)

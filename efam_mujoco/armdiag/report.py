@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -153,9 +154,31 @@ def register_cli(subparsers) -> None:
     p.set_defaults(
         run=run,
         file_inputs=("recording", "model"),
+        file_inputs_referenced=referenced_muscle_files,
         file_outputs=("json", "report"),
         file_positionals=("recording",),
     )
+
+
+def referenced_muscle_files(args) -> dict[str, list[str]]:
+    """The muscle files a spec ``--model`` names by path (``sections[i].muscles[j]``), labelled
+    as a user finds them: inputs too, which no output may overwrite. A spec that cannot be read
+    here names none; the run then refuses it with its own message."""
+    model = getattr(args, "model", None)
+    if model is None or Path(model).suffix.lower() != ".json":
+        return {}
+    try:
+        doc = json.loads(Path(model).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    sections = doc.get("sections") if isinstance(doc, dict) else None
+    out = {}
+    for i, section in enumerate(sections if isinstance(sections, list) else []):
+        muscles = section.get("muscles") if isinstance(section, dict) else None
+        for j, muscle in enumerate(muscles if isinstance(muscles, list) else []):
+            if isinstance(muscle, str) and muscle.strip():
+                out[f"--model {model}: sections[{i}].muscles[{j}]"] = [muscle]
+    return out
 
 
 def run(args) -> int:

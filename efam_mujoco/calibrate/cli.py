@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
 
 from ..files import OutputError, OutputSet, check_outputs
-from ..musclefile import muscle_from_document, read_document
+from ..musclefile import check_tension_only, muscle_from_document, read_document
 from ..recordings import add_recording_arguments, read_for_fit
 from ..stress import LAW_NAMES
 from . import report
@@ -81,6 +82,13 @@ def run(args) -> int:
             f"--out {args.out}: is a folder, not a file; give a file name (e.g. {Path(args.out) / 'muscle.json'})"
         )
     if args.figures:
+        # a prefix, not a folder: '--figures figs/' wrote 'figs/_blocked.png', '--figures .' the
+        # hidden '._blocked.png'
+        if str(args.figures).endswith(("/", os.sep)) or Path(args.figures).is_dir():
+            raise OutputError(
+                f"--figures {args.figures}: is a folder; give a prefix the figure names are appended to "
+                f"(e.g. {Path(args.figures) / 'fam1'} writes {Path(args.figures) / ('fam1' + FIGURE_SUFFIXES[0])})"
+            )
         check_outputs(
             {"--figures": figure_paths(args.figures)}, {"FILE": args.files, "--muscle": [args.muscle]}
         )
@@ -88,6 +96,7 @@ def run(args) -> int:
     muscle = load_uncalibrated(args.muscle)
     if args.tension_only:
         muscle = replace(muscle, tension_only=True)
+        check_tension_only(muscle, f"--tension-only with --muscle {args.muscle}")
     recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
     laws = LAW_NAMES if args.stress == "all" else (args.stress,)
     try:

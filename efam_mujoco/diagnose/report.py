@@ -286,7 +286,7 @@ def run(args) -> int:
     from dataclasses import replace
 
     from ..files import OutputSet, check_replaceable_folder, replace_folder, strict_json
-    from ..musclefile import load_muscle
+    from ..musclefile import check_tension_only, load_muscle
     from ..recordings import read_for_fit
 
     if args.report:
@@ -294,6 +294,7 @@ def run(args) -> int:
     muscle = load_muscle(args.muscle)
     if args.tension_only:
         muscle = replace(muscle, tension_only=True)
+        check_tension_only(muscle, f"--tension-only with --muscle {args.muscle}")
     recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
     d = diagnose(recordings, muscle)
     report = text(d)

@@ -324,8 +324,8 @@ def load_catalogue(path: str | Path | None = None) -> Catalogue:
         if key not in doc:
             raise CatalogueError(f"{label}: missing key '{key}'")
     _known_keys(doc, _TOP_KEYS, (), label)
-    for key in ("latex", "rules"):
-        if not isinstance(doc[key], dict):
+    for key in ("latex", "rules", "sources"):  # 'sources' is optional, and an object when given
+        if key in doc and not isinstance(doc[key], dict):
             raise CatalogueError(f"{label}: '{key}' must be a JSON object")
     _known_keys(doc["latex"], *_LATEX_KEYS, f"{label}: latex")
     _known_keys(doc["rules"], *_RULES_KEYS, f"{label}: rules")

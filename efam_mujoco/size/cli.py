@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..arm.spec import MAX_MUSCLES_PER_SECTION
+from ..arm.spec import ARM_BOUNDS, MAX_MUSCLES_PER_SECTION
+from ..cli import plain_float, plain_int
 from ..files import write_json_atomic
 from ..musclefile import MuscleFileError
 from ..stress import LAW_NAMES, StressLawError
@@ -20,10 +21,14 @@ def _number(flag: str, unit: str, low: float, high: float, low_open: bool = True
     """An argparse type: a finite number in its unit, inside (low, high]; the error names both."""
 
     def parse(text: str) -> float:
+        # a plain ASCII decimal, as every other command's number flags: float() also reads
+        # '5_00' and other scripts' digits ('５００'), which no user means as a pressure
         try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{flag} takes a number in {unit}, got {text!r}") from None
+            value = plain_float(text)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(
+                f"{flag} takes a plain decimal number in {unit} (like 0.5 or 2e3), got {text!r}"
+            ) from None
         below = value <= low if low_open else value < low
         if not math.isfinite(value) or below or value > high:
             bracket = "(" if low_open else "["
@@ -37,8 +42,8 @@ def _number(flag: str, unit: str, low: float, high: float, low_open: bool = True
 
 def _count(text: str) -> int:
     try:
-        value = int(text)
-    except ValueError:
+        value = plain_int(text)
+    except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(f"--bundle takes a whole number of muscles, got {text!r}") from None
     if value < 3:
         raise argparse.ArgumentTypeError(f"--bundle needs at least 3 muscles in a section, got {value}")
@@ -81,7 +86,7 @@ def register_cli(subparsers) -> None:
     p.add_argument("--bundle", metavar="M", type=_count, default=None,
                    help="size the muscles of one section of M in parallel; report its tip force, stroke, bend "
                    "and payload deflection (default: one muscle)")  # fmt: skip
-    p.add_argument("--payload", metavar="kg", type=_number("--payload", "kg", 0.0, 1000.0, low_open=False),
+    p.add_argument("--payload", metavar="kg", type=_number("--payload", "kg", 0.0, ARM_BOUNDS["payload_kg"][1], low_open=False),
                    default=0.0, help="tip payload of the bundle, kg (default 0)")  # fmt: skip
     p.add_argument("--unguided", action="store_true", default=False,
                    help="the muscle pushes without a guide tube: Euler buckling limits it (default: guided)")  # fmt: skip
@@ -92,7 +97,7 @@ def register_cli(subparsers) -> None:
                    help=f"law from that file: {', '.join(LAW_NAMES)} (default: the file's default law)")  # fmt: skip
     p.add_argument("--catalogue", metavar="FILE", default=None,
                    help="a catalogue JSON in the built-in layout (default: the built-in catalogue)")  # fmt: skip
-    p.add_argument("--top", metavar="K", type=int, default=3,
+    p.add_argument("--top", metavar="K", type=plain_int, default=3,
                    help="designs to propose: listed, verified in MuJoCo, written and drawn (default 3)")  # fmt: skip
     p.add_argument(
         "--json", metavar="FILE", default=None, help="write the full result as JSON (default: none)"
