@@ -602,14 +602,16 @@ def available_laws(source: str | Path) -> tuple[str, ...]:
 def check_tension_only(muscle: Muscle, where: str) -> None:
     """Refuse a tension-only extensile muscle (braid angle below the neutral 35.26 deg, the angle
     of Eq. 3-4 here): it pushes
-    its ends apart when pressurised, so as tension-only it would carry no force at all in its
-    working range (the table of ``efam muscle`` read blocked force 40.7 N analytic, 0 N MuJoCo,
-    without a word). Tension-only is for contractile (McKibben) muscles, whose braid buckles."""
+    its ends apart when pressurised, so as tension-only it would carry force only when stretched
+    past its free length (the table of ``efam muscle`` read blocked force 40.7 N analytic, 0 N
+    MuJoCo, without a word). The Python model and the plugin still take one (a slack extensile
+    muscle is a test of the clamp); a user's file or flag is refused. Tension-only is for contractile (McKibben) muscles, whose braid buckles."""
     if muscle.tension_only and muscle.theta_rest_deg < NEUTRAL_BRAID_ANGLE_DEG:
         raise MuscleFileError(
             f"{where}, but the muscle is extensile (braid angle {muscle.theta_rest_deg:.4g} deg, below the "
             f"neutral {NEUTRAL_BRAID_ANGLE_DEG:.2f} deg): it pushes its ends apart when pressurised and, "
-            "tension-only, would carry no force; tension-only is for contractile (McKibben) muscles"
+            "tension-only, would carry force only when stretched past its free length; tension-only is for "
+            "contractile (McKibben) muscles"
         )
 
 

@@ -292,6 +292,12 @@ BAD_CONFIGS = {
     "dead band 1e30 Pa": (_set(GOOD, deadband_Pa="1e30"), r"deadband_Pa.*never inflates"),
     "E1 1e300": (_set(GOOD, E1_Pa="1e300"), r"E1_Pa.*beyond 1e12"),
     "hexadecimal length": (_set(GOOD, rest_length_m="0x1p-3"), r"rest_length_m.*decimal number"),
+    # as the muscle-file reader: an MPa modulus written as Pa, a lock stiffness beyond 1e9 N/m
+    "E1 in MPa": (_set(GOOD, E1_Pa="1.479"), r"E1_Pa.*1e4 \.\. 5e7 Pa \(was it in MPa\?\)"),
+    "lock stiffness 1e300": (
+        _set(GOOD, lock_stiffness_N_per_m="1e300"),
+        r"lock_stiffness_N_per_m.*0 \.\. 1e9",
+    ),
     "bladder wall thinner than any": (_set(GOOD, bladder_volume_m3="1e-11"), r"bladder_volume_m3.*wall"),
     "bladder misfit at rest": (
         _set(GOOD, bladder_volume_m3=repr(1.05 * _volume_filling_sleeve_at_rest(FAM1))),
@@ -335,8 +341,11 @@ def test_python_model_rejects_the_same_unstable_polynomial():
 
 
 def test_polynomial_stable_over_strain_range_compiles():
-    # the same E3 with a stiffer E1 is stable again: the check is a real threshold, not a blanket ban
-    muscle = load_muscle("FAM1").with_stress(StressLaw("polynomial", (1.5e8, 1.97, -2e7, 0.0)))
+    # an E3 that FAM1's E1 (2.4 MPa) cannot hold is stable again under a stiffer E1 (50 MPa, the
+    # top of a bladder's plausible moduli): the check is a real threshold, not a blanket ban
+    with pytest.raises(ValueError, match="Drucker"):
+        mujoco.MjModel.from_xml_string(model_xml(FAM1, config=_set(POLY, E3_Pa="-6e6", E4_Pa="0")))
+    muscle = load_muscle("FAM1").with_stress(StressLaw("polynomial", (5e7, 1.97, -6e6, 0.0)))
     mujoco.MjModel.from_xml_string(model_xml(muscle))
 
 

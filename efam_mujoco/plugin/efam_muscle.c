@@ -148,6 +148,9 @@ static const char* const kAttributes[] = {
 #define MIN_WALL_M 1e-5         // bladder wall at rest
 #define MAX_COEFFICIENT 1e12    // |stress-law coefficient|: stiffer than diamond
 #define MAX_DEADBAND_PA 1.0e6   // the largest pressure the package drives a muscle with
+#define MIN_E1_PA 1e4           // bladder modulus (stress.E1_PLAUSIBLE_PA): soft silicone ..
+#define MAX_E1_PA 5e7           // .. stiff rubber
+#define MAX_LOCK_STIFFNESS 1e9  // N/m, as a muscle file's lock_stiffness_N_per_m
 
 // ----------------------------------------------------- scalar helpers (shared with efam_effects.h)
 
@@ -821,10 +824,12 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
           mu.bladder_volume, "must be in (0, 1] m^3");
   require(m, instance, mu.deadband >= 0 && mu.deadband < MAX_DEADBAND_PA, "deadband_Pa", mu.deadband,
           "must be in 0 .. 1e6 Pa: at 1000 kPa or more the muscle never inflates (was it in kPa?)");
-  require(m, instance, mu.lock_stiffness >= 0, "lock_stiffness_N_per_m", mu.lock_stiffness,
-          "must not be negative");
+  require(m, instance, mu.lock_stiffness >= 0 && mu.lock_stiffness <= MAX_LOCK_STIFFNESS, "lock_stiffness_N_per_m",
+          mu.lock_stiffness, "must be in 0 .. 1e9 N/m");
   mu.law = read_law(m, instance);
   read_coefficients(m, instance, &mu);
+  require(m, instance, mu.coef[0] >= MIN_E1_PA && mu.coef[0] <= MAX_E1_PA, "E1_Pa", mu.coef[0],
+          "cannot be physical for a bladder: its modulus lies in 1e4 .. 5e7 Pa (was it in MPa?)");
   derive(m, instance, &mu);
   check_stable(m, instance, &mu);
   effects_configure(m, instance, &mu.effects, EFFECTS_MUSCLE_OF(mu));  // efam_effects.h
