@@ -541,3 +541,14 @@ def test_arm_refuses_its_pressures_before_it_writes_the_xml(tmp_path, capsys):
                             "--pressures-kPa", "100", "100", "100"], tmp_path, capsys)  # fmt: skip
     assert code == 2 and "--pressures-kPa: need 6 finite pressures" in err
     assert mine.read_text() == "<mujoco>my edited arm</mujoco>"
+
+
+def test_a_time_step_no_candidate_makes_stable_is_said_so(tmp_path, capsys):
+    """A horizontal arm with 20 kg at its tip, linearised straight at rest (far from where the
+    load puts it), is stable at no candidate step; the builder used the smallest and described it
+    as "chosen: stable at 2 x itself"."""
+    code, out, err = run_cli(["arm", "--orientation", "horizontal", "--payload-kg", "20", "--disks", "2",
+                              "--xml", "h.xml"], tmp_path, capsys)  # fmt: skip
+    assert code == 0, err
+    assert "warning: arm: no candidate time step is stable at 2 x itself" in err
+    assert "not stable even at 2 x it" in err and "chosen: stable at" not in err

@@ -429,3 +429,20 @@ def test_a_catalogue_name_with_a_no_break_space_is_read():
         path = Path(folder) / "cat.json"
         path.write_text(json.dumps(doc))
         assert any(s.name == "PET\u00a01/8 in" for s in load_catalogue(path).sleeves)
+
+
+def test_a_thousandfold_relaxation_is_said_as_a_factor():
+    # '--pressure 1e-300' was told to rise "(+113999999999999977482...%)", 300 digits long
+    from efam_mujoco.size.relax import Relaxation
+
+    huge = Relaxation("--pressure", 1e-300, 114.0, "kPa", (114.0 / 1e-300 - 1) * 100, True)
+    assert "(x 1.14e+302)" in huge.message and len(huge.message) < 120
+    usual = Relaxation("--pressure", 300.0, 360.0, "kPa", 20.0)
+    assert "(+20.0 %)" in usual.message
+
+
+def test_arm_overlapping_muscles_name_the_flag(capsys):
+    # the spec's own words said "raise radius_m", a key the command line does not have
+    assert main(["arm", "--radius-mm", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "overlap at rest" in err and "raise --radius-mm" in err and "radius_m " not in err

@@ -233,14 +233,17 @@ def arm_from_args(args) -> ArmSpec:
     names = args.muscle * count if len(args.muscle) == 1 else args.muscle
     loaded = {name: load_muscle(name, args.stress) for name in set(names)}
     m = args.muscles_per_section
-    sections = tuple(
-        SectionSpec(
-            muscles=tuple(loaded[n] for n in names[j * m : (j + 1) * m]),
-            radius_m=None if args.radius_mm is None else args.radius_mm / 1e3,
-            disks=args.disks,
+    try:
+        sections = tuple(
+            SectionSpec(
+                muscles=tuple(loaded[n] for n in names[j * m : (j + 1) * m]),
+                radius_m=None if args.radius_mm is None else args.radius_mm / 1e3,
+                disks=args.disks,
+            )
+            for j in range(args.sections)
         )
-        for j in range(args.sections)
-    )
+    except ValueError as err:  # the spec's words name its keys; here the flag is the user's
+        raise ValueError(str(err).replace("raise radius_m or spread angles_deg", "raise --radius-mm")) from None
     return ArmSpec(
         sections=sections,
         orientation=args.orientation,

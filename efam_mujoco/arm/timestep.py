@@ -75,11 +75,19 @@ class TimestepChoice:
     limit_s: float
     given: bool
     integrator: str = "implicitfast"
+    #: a chosen step: whether the linearised arm is stable at the safety margin times it (False
+    #: when no candidate down to the smallest is: the smallest is used, and said so)
+    verified: bool = True
 
     def describe(self) -> str:
         """One line for people: the step, how it was found, and the limits."""
         margin = TIMESTEP_SAFETY.get(self.integrator, 2.0)
-        how = "given" if self.given else f"chosen: stable at {margin:g} x itself"
+        if self.given:
+            how = "given"
+        elif self.verified:
+            how = f"chosen: stable at {margin:g} x itself"
+        else:
+            how = f"chosen: the smallest candidate, and the linearised arm is not stable even at {margin:g} x it"
         return (
             f"time step {self.timestep_s * 1e3:g} ms, {self.integrator} ({how}); fastest mode omega_max = "
             f"{self.omega_max_rad_s:.0f} rad/s: undamped limit "
@@ -201,8 +209,19 @@ def choose_timestep(
     if given_s is None:
         candidates = [dt for dt in ROUND_TIMESTEPS_S if safety * dt <= limit]
         candidates = candidates or [limit / safety]
-        chosen = next((dt for dt in candidates if stable(safety * dt)), candidates[-1])
-        return TimestepChoice(chosen, omega_max, undamped_limit, limit, False, _NAMES[integrator])
+        verified = [dt for dt in candidates if stable(safety * dt)][:1]
+        chosen = verified[0] if verified else candidates[-1]
+        choice = TimestepChoice(
+            chosen, omega_max, undamped_limit, limit, False, _NAMES[integrator], bool(verified)
+        )
+        if not verified:  # never silent: the step is a guess, and the run may diverge or crawl
+            warnings.warn(
+                f"arm: no candidate time step is stable at {safety:g} x itself for the arm linearised straight "
+                f"at rest ({choice.describe()}); a heavy load far from that pose is the usual cause",
+                TimestepWarning,
+                stacklevel=3,
+            )
+        return choice
     choice = TimestepChoice(float(given_s), omega_max, undamped_limit, limit, True, _NAMES[integrator])
     if given_s > limit or not stable(given_s):
         raise ValueError(

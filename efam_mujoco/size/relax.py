@@ -41,9 +41,15 @@ class Relaxation:
             return "guide the muscle (drop --unguided: a guide tube, as the paper's test; a search finds a design)"
         verb = "raise" if self.achievable > self.requested else "lower"
         tail = {True: " (a search at that value finds a design)", False: " (not confirmed by a search)"}
+        # a change of a thousand-fold or more reads better as a factor (1e-300 kPa to 114 kPa
+        # printed a 300-digit percentage)
+        if abs(self.change_pct) < 1e5 or not self.requested:
+            change = f"{self.change_pct:+.1f} %"
+        else:
+            change = f"x {self.achievable / self.requested:.3g}"
         return (
             f"{verb} {self.requirement} from {self.requested:.4g} to {self.achievable:.4g} {self.unit} "
-            f"({self.change_pct:+.1f} %){tail.get(self.confirmed, '')}"
+            f"({change}){tail.get(self.confirmed, '')}"
         )
 
     def to_dict(self) -> dict:
