@@ -382,6 +382,16 @@ def decimal_cell(text: str, scale: float = 1.0) -> tuple[float | None, str]:
     return value, ""
 
 
+def _looks_like_epoch(text: str, scale: float) -> bool:
+    """Whether a time cell reads as Unix clock time (seconds, or ms, since 1970, dated 2001 ..
+    2100) rather than the time since the test's start."""
+    try:
+        seconds = float(text) * scale
+    except ValueError:
+        return False
+    return 9.8e8 <= seconds <= 4.2e9
+
+
 def _parse_row(row, header, columns, order):
     """The row's values in SI (role order) and None, or None and (column, problem)."""
     if len(row) != len(header):
@@ -394,6 +404,11 @@ def _parse_row(row, header, columns, order):
             return None, (name, "empty value")
         value, problem = decimal_cell(text, scale)
         if value is None:
+            if role == "time" and "cannot be physical" in problem and _looks_like_epoch(text, scale):
+                problem += (
+                    ": it reads as an absolute clock time (Unix seconds since 1970); write the time since "
+                    "the test's start (the first time subtracted)"
+                )
             return None, (name, problem)
         if role == "pressure" and value < -P_ATM_PA:
             return None, (name, f"gauge pressure {value / 1e3:g} kPa is below -1 atm (-101.325 kPa)")
@@ -509,6 +524,10 @@ SIGN_CORRELATION = 0.5
 #: muscle at all: a muscle's force rises and falls with its pressure and length whatever its
 #: friction, drift or zero (a channel of noise, a column from another test, shuffled rows)
 FOLLOW_CORRELATION = 0.3
+#: A recording with more than this share of its lengths outside the admissible range has lengths
+#: in another unit or column (the force checks against the model are then skipped: they would
+#: read the model at the wrong lengths)
+LENGTHS_WRONG_SHARE = 0.05
 #: Gauge pressures below this are flagged (noise around zero passes).
 NEGATIVE_PRESSURE_PA = -10e3
 #: One standard atmosphere (Pa): what an absolute pressure reads above the gauge pressure.
@@ -659,6 +678,9 @@ def check_plausibility(
             _column(rec, "force|tension"),
         )
         median_L = float(np.median(L))
+        # lengths a unit or a column away from the muscle's: the forces' checks against the
+        # model would compare with a model read at the wrong lengths, and only add noise
+        lengths_wrong = False
         tcol = _column(rec, "time")
         interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
         if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
@@ -685,14 +707,26 @@ def check_plausibility(
                 f"{src}: column '{lcol}': median length {median_L:.4g} m is {median_L / rest:.3g} x the "
                 f"muscle's resting length {rest:.4g} m{hint}"
             )))  # fmt: skip
+            lengths_wrong = True
         else:
             out = (L < lo - LENGTH_TOLERANCE * rest) | (L > hi + LENGTH_TOLERANCE * rest)
             if out.any():
                 i = int(np.argmax(out))
+                base, unit = split_unit(lcol)
+                hint = ""
+                # a displacement written under a length header: read from the resting length,
+                # every value would be admissible
+                shifted = L + rest
+                if base == "length" and np.all((shifted >= lo) & (shifted <= hi + LENGTH_TOLERANCE * rest)):
+                    hint = (
+                        f"; read as a displacement from the resting length every value is admissible: is the "
+                        f"column 'displacement_{unit}'?"
+                    )
                 findings.append(Finding("length-range", (
                     f"{src}: {_line(rec, i)}, column '{lcol}': length {L[i]:.4g} m is outside the muscle's "
-                    f"admissible range {lo:.4g} .. {hi:.4g} m ({np.count_nonzero(out)} samples)"
+                    f"admissible range {lo:.4g} .. {hi:.4g} m ({np.count_nonzero(out)} samples){hint}"
                 )))  # fmt: skip
+                lengths_wrong = lengths_wrong or np.mean(out) > LENGTHS_WRONG_SHARE
             nearest = float(np.min(np.abs(L - rest)))
             if nearest > REST_LENGTH_REACH * rest:
                 base, unit = split_unit(lcol)
@@ -708,6 +742,7 @@ def check_plausibility(
                     f"{src}: column '{lcol}': the recording never comes within {REST_LENGTH_REACH:.0%} of the "
                     f"muscle's resting length {rest:.4g} m (nearest {nearest:.4g} m away): {question}"
                 )))  # fmt: skip
+                lengths_wrong = True
         # pressures
         top = float(np.max(P))
         if top > rated_pressure_Pa:
@@ -757,7 +792,7 @@ def check_plausibility(
             )))  # fmt: skip
         expected = float(np.ptp(model)) if model.size else 0.0
         spread = float(np.ptp(F))
-        if not big.any():  # a force beyond the muscle's reach is 'force-range' already
+        if not big.any() and not lengths_wrong:  # a force beyond the muscle's reach is 'force-range' already
             with np.errstate(all="ignore"):  # the same pressures at the resting length
                 blocked = np.asarray(free.push(Pc, np.full_like(Pc, rest)), dtype=float)
             scale = _force_scale(Fc, aligned, blocked)
@@ -774,7 +809,7 @@ def check_plausibility(
         if (
             spread == 0.0
             or len(np.unique(F[: min(len(F), 100000)])) <= 2
-            or (expected > 5.0 and spread < 0.02 * expected)
+            or (expected > 5.0 and spread < 0.02 * expected and not lengths_wrong)
         ):
             fits = unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
             hint = f" (or the numbers fit '{fits}')" if fits and len(np.unique(F[:1000])) > 2 else ""
@@ -784,7 +819,12 @@ def check_plausibility(
             )))  # fmt: skip
         # absolute pressure under a gauge header: never below an atmosphere, and the forces fit the
         # model far better an atmosphere lower (a test held above 100 kPa gauge fits as recorded)
-        if lowest >= ATMOSPHERE_PA - ABSOLUTE_SLACK_PA and expected > 5.0 and model.size == len(Pc):
+        if (
+            lowest >= ATMOSPHERE_PA - ABSOLUTE_SLACK_PA
+            and expected > 5.0
+            and model.size == len(Pc)
+            and not lengths_wrong
+        ):
             with np.errstate(all="ignore"):
                 lowered = np.asarray(free.push(np.clip(Pc - ATMOSPHERE_PA, 0.0, None), Lc), dtype=float)
             error_as_read = float(np.sqrt(np.mean((Fc - aligned) ** 2)))
@@ -798,7 +838,11 @@ def check_plausibility(
                 )))  # fmt: skip
         # a pressure in another unit than its header's: within the rated pressure (else
         # 'pressure-range' says it) the forces fit the model far better read in another unit
-        as_read, unit = _pressure_unit_fit(free, Fc, Pc, Lc, aligned, pcol, rated_pressure_Pa)
+        as_read, unit = (
+            (0.0, None)
+            if lengths_wrong
+            else _pressure_unit_fit(free, Fc, Pc, Lc, aligned, pcol, rated_pressure_Pa)
+        )
         if unit:
             findings.append(Finding("pressure-unit", (
                 f"{src}: column '{pcol}': the forces fit the muscle's model with {unit[1]:.3g} N RMS if the "

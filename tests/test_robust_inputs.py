@@ -263,6 +263,19 @@ def test_a_force_in_another_unit_under_force_N_is_refused(tmp_path, capsys, unit
     assert (hint in err) if hint else ("the numbers fit" not in err)
 
 
+def test_a_displacement_under_a_length_header_is_said_so_without_force_noise(tmp_path, capsys):
+    # displacements from the resting length written under 'length_mm' read as a muscle squashed
+    # to a sixth of its length: the model's forces there are meganewtons, and the force checks
+    # against it called the load cell dead and the forces 4e-5 x the model's
+    muscle = load_muscle("FAM1")
+    (r,) = synthesize(muscle, pressures_Pa=(206.8e3,), rate_Hz=20.0)
+    _write_columns(tmp_path / "d.csv", "time_s,length_mm,pressure_kPa,force_N",
+                   r.time_s, (r.length_m - muscle.rest_length_m) * 1e3 + 5.0, r.pressure_Pa / 1e3, r.force_N)  # fmt: skip
+    err = run_bad(["diagnose", "--muscle", "FAM1", "d.csv"], tmp_path, capsys,
+                  r"\[length-range\] d\.csv: .*column 'length_mm'", r"is the column 'displacement_mm'\?")  # fmt: skip
+    assert "[force-dead]" not in err and "[force-unit]" not in err and "[pressure-" not in err
+
+
 def test_real_muscles_held_near_their_full_contraction_pass_the_force_scale():
     # a Festo DMSP-10 held at 75 % of its contraction pulls 0.02-0.23 x what the nominal model
     # says (the model's relative error grows without bound towards the free length): judged only

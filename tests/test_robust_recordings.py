@@ -118,6 +118,12 @@ PARSE_CASES = [
     ("-inf", row(6, length="-inf"), r"line 6.*not a finite"),
     ("1e300 force", row(6, force="1e300"), r"line 6, column 'force_N'.*cannot be physical"),
     ("1e300 time", row(6, time="1e300"), r"line 6, column 'time_s'.*cannot be physical"),
+    # a logger's Unix clock time: said as such, with what to write instead
+    (
+        "epoch time",
+        row(6, time="1700000000.5"),
+        r"line 6, column 'time_s'.*absolute clock time \(Unix seconds",
+    ),
     ("1e308 length", row(6, length="1e308"), r"line 6.*cannot be physical"),
     ("pressure below vacuum", row(6, pressure="-200"), r"line 6, column 'pressure_kPa'.*below -1 atm"),
     ("duplicate time", row(6, time=f"{good_rows()[3, 0]:.9g}"), r"line 6.*(duplicate time|backwards)"),

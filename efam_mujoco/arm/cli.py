@@ -243,7 +243,9 @@ def arm_from_args(args) -> ArmSpec:
             for j in range(args.sections)
         )
     except ValueError as err:  # the spec's words name its keys; here the flag is the user's
-        raise ValueError(str(err).replace("raise radius_m or spread angles_deg", "raise --radius-mm")) from None
+        raise ValueError(
+            str(err).replace("raise radius_m or spread angles_deg", "raise --radius-mm")
+        ) from None
     return ArmSpec(
         sections=sections,
         orientation=args.orientation,
