@@ -167,6 +167,13 @@ def test_diagnose_arm_refuses_metres_under_a_millimetre_header(lab, capsys):
             {"command_factor": 1e-2},
             [r"under 5% of the model's highest pressure", r"'p_s1m\d_bar'"],
         ),
+        # psi under a kPa header: 75 psi read as 75 kPa hardly bends the arm; the replay read in
+        # psi follows the tip (was diagnosed, the gains re-fitted at their bounds)
+        (
+            "psi.csv",
+            {"command_factor": 1 / 6.894757},
+            [r"follows the recorded tip .* if the commands were in psi", r"'p_s1m1_psi'"],
+        ),
         # a tip in another unit that keeps it a sixth of the arm's length from the base (cm under
         # 'mm'): passed the old tenth, and a weak muscle was named
         ("near.csv", {"tip_factor": 0.15}, [r"stays within .* of the arm's base", r"at least 0\.3 x"]),

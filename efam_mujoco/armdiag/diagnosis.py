@@ -60,7 +60,7 @@ from .recording import (
     check_against_model,
     unit_hint,
 )
-from .replay import SETTLE_S, Knobs, Replayer, default_threads
+from .replay import SETTLE_S, Knobs, Replayer, default_threads, with_values
 from .specfile import model_limits
 
 BLOCKS = 6
@@ -236,6 +236,50 @@ def _correlation_length(r: np.ndarray) -> float:
     return float(np.mean(out)) if out else 1.0
 
 
+#: commands read in another pressure unit must bring the nominal replay's tip error under this
+#: share of its error as read (and by at least ``COMMAND_UNIT_MATERIAL_M``) to be called a unit
+#: mix-up: the muscle recordings' ``pressure-unit`` rule (``recordings.UNIT_ERROR_SHARE``)
+COMMAND_UNIT_SHARE = 0.3
+COMMAND_UNIT_MATERIAL_M = 5e-3
+
+
+def _check_command_unit(replayer: Replayer, rec: ArmRecording, valid: np.ndarray) -> None:
+    """Refuse commands written in another pressure unit than their header's when the nominal
+    arm follows the recorded tip far better with them so read (psi under a kPa header: 75 psi
+    read as 75 kPa barely bends the arm). Only units that keep the largest command inside the
+    model's range and above ``MIN_COMMAND_SHARE`` of it are tried, as the muscles' gains of one
+    batched replay: a test commanded at the usual pressures tries none and costs nothing."""
+    from ..units import PRESSURE, split_unit
+    from .recording import MIN_COMMAND_SHARE
+
+    columns = rec.meta.get("command_columns") or [f"p_{m}_Pa" for m in rec.muscles]
+    unit = split_unit(columns[0])[1]
+    top = float(np.max(replayer.max_Pa))
+    highest = float(np.nanmax(rec.command_Pa)) if rec.command_Pa.size else 0.0
+    if unit not in PRESSURE or not (math.isfinite(top) and highest > 0):
+        return
+    options = [
+        (u, PRESSURE[u] / PRESSURE[unit])
+        for u in PRESSURE
+        if u != unit and MIN_COMMAND_SHARE * top <= highest * PRESSURE[u] / PRESSURE[unit] <= top
+    ]
+    if not options:
+        return
+    nominal = replayer.nominal
+    variants = [nominal] + [with_values(nominal, gain=tuple(g * f for g in nominal.gain)) for _, f in options]
+    tips = replayer.tips(variants)
+    errors = [float(np.sqrt(np.mean((t[valid] - rec.tip_m[valid]) ** 2))) for t in tips]
+    k = int(np.argmin(errors[1:]))
+    as_read, best = errors[0], errors[1 + k]
+    if best < COMMAND_UNIT_SHARE * as_read and as_read - best > COMMAND_UNIT_MATERIAL_M:
+        name = columns[0]
+        raise ArmRecordingError(
+            f"{rec.meta.get('source', 'recording')}: column '{name}': the model arm follows the recorded tip "
+            f"with {best * 1e3:.3g} mm RMS if the commands were in {options[k][0]} against {as_read * 1e3:.3g} mm "
+            f"as read in {unit}: is the columns' unit right? the numbers fit '{split_unit(name)[0]}_{options[k][0]}'"
+        )
+
+
 def diagnose_arm(
     spec, recording: ArmRecording, threads: int | None = None, effects: tuple[str, ...] | None = None
 ) -> ArmDiagnosis:
@@ -258,6 +302,7 @@ def diagnose_arm(
     if train.sum() < 20 or held.sum() < 10:
         raise ValueError(f"{rec.meta.get('source', 'recording')}: too few tip samples to hold any out")
     noise = noise_floor(rec.time_s, np.where(train[:, None], measured, np.nan))
+    _check_command_unit(replayer, rec, valid)
     M = len(rec.muscles)
 
     # 2. the re-fit, on the search window (the whole recording unless it is long)
