@@ -213,6 +213,8 @@ def read_document(source: str | Path) -> tuple[dict, str]:
     """The parsed JSON of a preset name or a file path, and a label for messages."""
     if not isinstance(source, (str, os.PathLike)):
         raise MuscleFileError(f"a muscle is a preset name or a file path, got {type(source).__name__}")
+    if isinstance(source, str) and not source.strip():  # Path('') is '.': "is a folder" hid the mistake
+        raise MuscleFileError("a muscle is a preset name or a file path, got an empty name")
     key = str(source).lower()
     if key in PRESETS and Path(source).exists():
         raise MuscleFileError(

@@ -48,6 +48,7 @@ import math
 import os
 import re
 import sys
+import warnings
 from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -931,6 +932,26 @@ def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str
             "implausible recording(s): " + "; ".join(lines)
             + f" (if the data are right, pass {flag} {names} to continue with a warning)"
         )  # fmt: skip
+
+
+class PlausibilityWarning(UserWarning):
+    """A failed plausibility check the caller allowed (``allow=``): the work goes on, said once."""
+
+
+def check_for_fit(recordings, muscle, allow=(), where: str = "fit") -> None:
+    """The plausibility checks of the ``efam`` commands for the Python entry points
+    (``diagnose``, ``calibrate``): raise :class:`PlausibilityError` naming every failed check
+    not in ``allow`` (check names, or ``"all"`` to skip them: the commands have run them and
+    said what they allowed); an allowed one is a :class:`PlausibilityWarning`. Before, a force
+    logged in lbf, a length in mm or a dead load cell went into a Python fit without a word."""
+    if isinstance(allow, str) and allow == "all":
+        return
+    allow = (allow,) if isinstance(allow, str) else tuple(allow)
+    findings = check_plausibility(recordings, muscle)
+    enforce_plausibility(
+        findings, allow=allow, flag=f"{where}: the allow argument with",
+        warn=lambda line: warnings.warn(line, PlausibilityWarning, stacklevel=4),
+    )  # fmt: skip
 
 
 # ------------------------------------------------------------------------------- decimation

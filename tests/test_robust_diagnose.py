@@ -10,7 +10,7 @@ from efam_mujoco.diagnose import diagnose
 from efam_mujoco.diagnose import virtual_bench as V
 from efam_mujoco.diagnose.select import MIN_NOISE_N, Engine, noise_floor
 from efam_mujoco.musclefile import load_muscle
-from efam_mujoco.recordings import Recording
+from efam_mujoco.recordings import PlausibilityError, Recording
 
 
 def test_a_training_matrix_rounding_left_indefinite_is_solved():
@@ -55,5 +55,7 @@ def test_a_recording_where_nothing_varies_gets_a_finite_noise_floor():
     n = 2000
     t = np.arange(n) * 0.01
     rec = Recording(t, np.full(n, muscle.rest_length_m), np.full(n, 200e3), np.full(n, 12.0))
-    d = diagnose([rec], muscle, next_experiment=False)
+    with pytest.raises(PlausibilityError, match=r"\[nothing-varies\]"):  # refused by default, as the CLI does
+        diagnose([rec], muscle, next_experiment=False)
+    d = diagnose([rec], muscle, next_experiment=False, allow="all")
     assert d.noise_N >= MIN_NOISE_N and np.isfinite(d.heldout_rms_before_N)

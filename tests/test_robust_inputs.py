@@ -276,6 +276,58 @@ def test_a_displacement_under_a_length_header_is_said_so_without_force_noise(tmp
     assert "[force-dead]" not in err and "[force-unit]" not in err and "[pressure-" not in err
 
 
+def test_the_python_entry_points_run_the_commands_checks():
+    # the documented Python path (read_csv -> calibrate / diagnose) ran no plausibility check:
+    # forces in lbf calibrated to E1 at its bound, lengths in mm were diagnosed as end effects
+    import warnings as _warnings
+
+    from efam_mujoco.calibrate import calibrate
+    from efam_mujoco.diagnose import diagnose
+    from efam_mujoco.recordings import PlausibilityError, PlausibilityWarning
+
+    muscle = load_muscle("FAM1")
+    recs = synthesize(muscle, pressures_Pa=(206.8e3, 413.7e3), rate_Hz=20.0)
+    lbf = [Recording(r.time_s, r.length_m, r.pressure_Pa, r.force_N / 4.4482216152605) for r in recs]
+    with pytest.raises(
+        PlausibilityError, match=r"\[force-unit\].*calibrate: the allow argument with force-unit"
+    ):
+        calibrate(lbf, muscle, ("linear",), heldout=False)
+    with pytest.raises(PlausibilityError, match=r"\[force-unit\]"):
+        diagnose(lbf, muscle, next_experiment=False)
+    in_mm = [Recording(r.time_s, r.length_m * 1e3, r.pressure_Pa, r.force_N) for r in recs]
+    with pytest.raises(PlausibilityError, match=r"\[length-unit\]"):
+        diagnose(in_mm, muscle, next_experiment=False)
+    # allowed by name: the fit goes on, and the warning says what was let through
+    with _warnings.catch_warnings(record=True) as caught:
+        _warnings.simplefilter("always")
+        calibrate(lbf, muscle, ("linear",), heldout=False, allow=("force-unit",))
+    assert any(
+        issubclass(w.category, PlausibilityWarning) and "[force-unit]" in str(w.message) for w in caught
+    )
+
+
+def test_calibrate_and_load_muscle_name_arguments_that_cannot_be():
+    from efam_mujoco.calibrate import calibrate
+
+    muscle = load_muscle("FAM1")
+    recs = synthesize(muscle, pressures_Pa=(206.8e3,), rate_Hz=20.0)
+    for n in (0, -1, 2.5, True):  # n = 0 fitted to the bounds with an Eq. 14 error of NaN
+        with pytest.raises(ValueError, match=r"calibrate: n \(comparison points per pressure level\)"):
+            calibrate(recs, muscle, ("linear",), heldout=False, n=n)
+    with pytest.raises(ValueError, match="no stress law given"):  # was min()'s "empty sequence"
+        calibrate(recs, muscle, ())
+    with pytest.raises(TypeError, match="calibrate: muscle must be a Muscle"):
+        calibrate(recs, None, ("linear",))
+    with pytest.raises(musclefile.MuscleFileError, match="got an empty name"):  # was "'.': is a folder"
+        load_muscle("")
+
+
+def test_suite_list_honours_domain_and_task(tmp_path, capsys):
+    code, out, _ = run_cli(["suite", "--list", "--domain", "arm"], tmp_path, capsys)
+    assert code == 0 and out.strip() and all(line.startswith("arm-") for line in out.strip().splitlines())
+    run_bad(["suite", "--list", "--domain", "foo", "--task", "bar"], tmp_path, capsys, r"no such task")
+
+
 def test_real_muscles_held_near_their_full_contraction_pass_the_force_scale():
     # a Festo DMSP-10 held at 75 % of its contraction pulls 0.02-0.23 x what the nominal model
     # says (the model's relative error grows without bound towards the free length): judged only

@@ -53,6 +53,38 @@ def test_load_refuses_unknown_names():
         suite.load("bundle", "reach", task_kwargs={"seed": 1})
 
 
+@pytest.mark.parametrize("random", [1.5, -1, 2**32, True, "0", float("nan")])
+def test_load_names_a_seed_that_is_no_seed(random):
+    # numpy said "Cannot cast scalar from dtype('float64')", or "Seed must be between 0 and
+    # 2**32 - 1" without naming the key; True was taken as seed 1
+    with pytest.raises(ValueError, match=r"task_kwargs\['random'\] must be a whole-number seed"):
+        suite.load("bundle", "reach", task_kwargs={"random": random})
+
+
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"task_kwargs": [1]}, "task_kwargs must be a dict"),
+        ({"environment_kwargs": {"control_timestep": 0.05}}, "control_timestep are set by the task"),
+        ({"environment_kwargs": {"n_sub_steps": 2}}, "n_sub_steps are set by the task"),
+    ],
+)
+def test_load_refuses_kwargs_it_cannot_take_by_name(kwargs, words):
+    # dm_control said "got multiple values for keyword argument 'control_timestep'" (for any
+    # value) and "Both n_sub_steps and control_timestep were supplied"
+    with pytest.raises((TypeError, ValueError), match=words):
+        suite.load("bundle", "reach", **kwargs)
+
+
+def test_an_action_that_is_not_real_numbers_is_refused_by_name():
+    env = suite.load("bundle", "reach", task_kwargs={"random": 0})
+    env.reset()
+    with pytest.raises(ValueError, match="real pressure fractions.*complex128"):
+        env.step(np.array([0.5 + 1j, 0.5, 0.5]))
+    with pytest.raises(ValueError, match="real pressure fractions.*object"):
+        env.step(np.array([None, 0.5, 0.5], dtype=object))
+
+
 @pytest.mark.parametrize("time_limit", [-1, 0, float("nan"), "10", True])
 def test_load_refuses_a_time_limit_that_is_not_a_positive_length(time_limit):
     with pytest.raises(ValueError, match="time_limit must be a positive episode length in s"):

@@ -68,3 +68,20 @@ def test_adapter_takes_an_image_size_as_an_array():
     env = SuiteEnv("bundle", "reach", render_mode="rgb_array", size=np.array([48, 64]))
     env.reset(seed=0)
     assert env.render().shape == (48, 64, 3)
+
+
+def test_adapter_refuses_a_step_before_reset_unreal_actions_and_options():
+    """A step before reset() ended in "float() argument must be ... not 'NoneType'"; a complex
+    action was cast with numpy's warning and a text one parsed; reset options were ignored."""
+    import pytest
+
+    env = SuiteEnv("bundle", "reach")
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+        env.step(np.full(3, 0.5))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="real pressure fractions.*complex128"):
+        env.step(np.array([0.5 + 1j, 0.5, 0.5]))
+    with pytest.raises(ValueError, match="real pressure fractions.*<U"):
+        env.step(np.array(["0.5", "0.5", "0.5"]))
+    with pytest.raises(ValueError, match=r"takes no options, got \['bogus'\]"):
+        env.reset(seed=0, options={"bogus": 1})

@@ -103,6 +103,7 @@ def run(args) -> int:
         cal = calibrate(
             recordings, muscle, laws, estimate_theta=not args.keep_theta, fit_deadband=args.fit_deadband,
             objective=args.objective, heldout=not args.no_heldout,
+            allow="all",  # read_for_fit ran the checks and said what --allow let through
         )  # fmt: skip
     except ValueError as err:  # a fit that cannot be made from these data: say which data
         raise ValueError(f"{', '.join(str(f) for f in args.files)}: {err}") from None

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..muscle import Muscle, MuscleError
 from ..musclefile import save_muscle
-from ..recordings import MIN_SAMPLES, Recording, refuse_copies
+from ..recordings import MIN_SAMPLES, Recording, check_for_fit, refuse_copies
 from ..stress import LAW_NAMES, LAWS, StressLaw
 from .blocked import BlockedForceFit, blocked_points, fit_blocked
 from .data import Samples, pool
@@ -93,6 +93,8 @@ def resolve_laws(laws) -> tuple[str, ...]:
     if laws in (None, "all"):
         return LAW_NAMES
     names = (laws,) if isinstance(laws, str) else tuple(laws)
+    if not names:  # min() over no fits said "arg is an empty sequence"
+        raise ValueError(f"no stress law given: name at least one of {', '.join(LAW_NAMES)}, or 'all'")
     for name in names:
         if name not in LAW_NAMES:
             raise ValueError(f"unknown stress law '{name}' (known: {', '.join(LAW_NAMES)}, or 'all')")
@@ -126,6 +128,7 @@ def calibrate(
     heldout: bool = True,
     heldout_objective: str | None = None,
     n: int = 5,
+    allow=(),
 ) -> Calibration:
     """Calibrate ``muscle`` (its geometry: rest length and diameter, bladder volume; its
     ``tension_only``) on recordings. ``estimate_theta=False`` keeps the muscle's braid angle
@@ -133,9 +136,20 @@ def calibrate(
     law instead of keeping the Sec. 4.3 estimate; ``objective`` as in :func:`fit.fit_law`.
     ``heldout_objective``: the criterion of the held-out refits; ``None`` (default) = the same as
     ``objective``, so the held-out error measures exactly the procedure that made the fits.
+    The recordings pass the ``efam calibrate`` plausibility checks first
+    (``recordings.check_for_fit``): a failed check not named in ``allow`` (or ``allow="all"``)
+    raises ``PlausibilityError``.
     """
     t0 = time.perf_counter()
     names = resolve_laws(laws)
+    if not isinstance(muscle, Muscle):
+        raise TypeError(f"calibrate: muscle must be a Muscle (load_muscle), got {type(muscle).__name__}")
+    # n: the Eq. 14 comparison points per pressure level (Delta L = k/n Delta L_max); n = 0 gave
+    # a fit at the bounds and an Eq. 14 error of NaN without a word
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(
+            f"calibrate: n (comparison points per pressure level) must be a whole number >= 1, got {n!r}"
+        )
     recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
     for r in recordings:
         if not isinstance(r, Recording):  # a file name's length was counted as its samples
@@ -155,6 +169,7 @@ def calibrate(
             f"the force is {forces[0]:g} N in every sample: a stress law cannot be calibrated "
             "against a constant force (a dead or disconnected load cell?)"
         )
+    check_for_fit(recordings, muscle, allow, "calibrate")
     samples = pool(recordings)
     blocked, base = geometry_from_blocked(samples, muscle, estimate_theta)
     problem = Problem(base, recordings, n=n, samples=samples)

@@ -26,7 +26,7 @@ from functools import partial
 import numpy as np
 
 from ..muscle import Muscle
-from ..recordings import MIN_SAMPLES, Recording, refuse_copies
+from ..recordings import MIN_SAMPLES, Recording, check_for_fit, refuse_copies
 from ..units import check_pressure_Pa
 from .confidence import (
     CALIBRATION,
@@ -182,9 +182,12 @@ def diagnose(
     laws=None,
     max_effects: int = 2,
     next_experiment: bool = True,
+    allow=(),
 ) -> Diagnosis:
     """Diagnose the mismatch between ``muscle`` (its geometry is the starting point; its law and
-    dead band are re-fitted) and force-length-pressure ``recordings``."""
+    dead band are re-fitted) and force-length-pressure ``recordings``. The recordings pass the
+    ``efam diagnose`` plausibility checks first (``recordings.check_for_fit``): a failed check
+    not named in ``allow`` (or ``allow="all"``) raises ``PlausibilityError``."""
     start = time.perf_counter()
     recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
     if not recordings:
@@ -202,6 +205,7 @@ def diagnose(
         raise TypeError(f"diagnose: muscle must be a Muscle (load_muscle), got {type(muscle).__name__}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 0:
         raise ValueError(f"diagnose: max_effects must be a whole number >= 0, got {max_effects!r}")
+    check_for_fit(recordings, muscle, allow, "diagnose")
     # one name is a name, not its letters ('linear' was read as the laws 'l', 'i', ...)
     candidates = (candidates,) if isinstance(candidates, str) else tuple(candidates)
     laws = (laws,) if isinstance(laws, str) else laws

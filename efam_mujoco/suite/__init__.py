@@ -18,6 +18,8 @@ import inspect
 import os
 import sys
 
+import numpy as np
+
 if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
     os.environ.setdefault("MUJOCO_GL", "egl")  # headless: dm_control would try GLFW first
 
@@ -45,6 +47,19 @@ EXTRA = tuple(sorted(set(ALL_TASKS) - set(BENCHMARKING)))
 TASKS_BY_DOMAIN = {d: tuple(t for dd, t in ALL_TASKS if dd == d) for d in _DOMAINS}
 
 
+def _check_random(random) -> None:
+    """``task_kwargs['random']``: None, a ``numpy.random.RandomState`` or a whole-number seed in
+    0 .. 2**32 - 1 (numpy's own messages name neither the key nor the rule: "Cannot cast scalar
+    from dtype('float64')")."""
+    if random is None or isinstance(random, np.random.RandomState):
+        return
+    if isinstance(random, bool) or not isinstance(random, (int, np.integer)) or not 0 <= random < 2**32:
+        raise ValueError(
+            f"task_kwargs['random'] must be a whole-number seed in 0 .. 2**32 - 1 or a numpy RandomState, "
+            f"got {random!r}"
+        )
+
+
 def load(domain_name, task_name, task_kwargs=None, environment_kwargs=None, visualize_reward=False):
     """An environment of the suite, as ``dm_control.suite.load``.
 
@@ -59,7 +74,20 @@ def load(domain_name, task_name, task_kwargs=None, environment_kwargs=None, visu
         raise ValueError(
             f"unknown task {task_name!r} in domain {domain_name!r}; its tasks are {', '.join(suite)}"
         )
+    if task_kwargs is not None and not isinstance(task_kwargs, dict):
+        raise TypeError(f"task_kwargs must be a dict of keyword arguments, got {type(task_kwargs).__name__}")
+    if environment_kwargs is not None and not isinstance(environment_kwargs, dict):
+        raise TypeError(
+            f"environment_kwargs must be a dict of keyword arguments, got {type(environment_kwargs).__name__}"
+        )
     task_kwargs = dict(task_kwargs or {})
+    _check_random(task_kwargs.get("random"))
+    fixed = sorted({"control_timestep", "n_sub_steps", "time_limit"} & set(environment_kwargs or {}))
+    if fixed:  # dm_control said "got multiple values for keyword argument", or both were supplied
+        raise ValueError(
+            f"environment_kwargs: {', '.join(fixed)} are set by the task (the control step is the suite's; "
+            "the episode length is task_kwargs['time_limit'])"
+        )
     accepted = inspect.signature(suite[task_name]).parameters
     unknown = sorted(set(task_kwargs) - set(accepted))
     if unknown:

@@ -26,8 +26,12 @@ MAX_EPISODES = 10_000
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--list", action="store_true", help="list the domains and tasks")
-    parser.add_argument("--domain", default="bundle", help="bundle or arm (default bundle)")
-    parser.add_argument("--task", default="reach", help="task name (default reach)")
+    parser.add_argument(
+        "--domain", default=None, help="bundle or arm (default bundle; with --list: only its tasks)"
+    )
+    parser.add_argument(
+        "--task", default=None, help="task name (default reach; with --list: only tasks of that name)"
+    )
     parser.add_argument(
         "--episodes", type=bounded_int(1, MAX_EPISODES), default=10,
         help=f"seeded episodes per policy, 1 .. {MAX_EPISODES} (default 10)",
@@ -100,11 +104,18 @@ def write_strip(domain: str, task: str, seed: int, path: Path, frames: int = 6) 
 def _run(args) -> int:
     from . import ALL_TASKS, BENCHMARKING, controllers
 
-    if args.list:
-        for domain, task in ALL_TASKS:
+    if args.list:  # --domain/--task narrow the list (they were ignored without a word)
+        shown = [(d, t) for d, t in ALL_TASKS if args.domain in (None, d) and args.task in (None, t)]
+        if not shown:
+            raise ValueError(
+                f"--list --domain {args.domain} --task {args.task}: no such task; efam suite --list shows them all"
+            )
+        for domain, task in shown:
             tag = "benchmarking" if (domain, task) in BENCHMARKING else "extra"
             print(f"{domain}-{task}  ({tag})")
         return 0
+    args.domain = args.domain or "bundle"
+    args.task = args.task or "reach"
     if (args.domain, args.task) not in ALL_TASKS:
         raise ValueError(f"--domain/--task: no task {args.domain}-{args.task}; see efam suite --list")
     if args.seed + args.episodes - 1 > MAX_SEED:  # the last episode's seed, before any episode runs

@@ -478,6 +478,11 @@ class EfamTask(base.Task):
                 f"action must hold one pressure fraction per muscle, shape {physics.views.ctrl.shape} "
                 f"(the action spec's), got shape {np.shape(action)}"
             )
+        kind = np.asarray(action).dtype.kind
+        if kind not in "fiu":  # complex, text or objects ended deep in numpy's casting rules
+            raise ValueError(
+                f"action must be real pressure fractions in [0, 1], got an array of dtype {np.asarray(action).dtype}"
+            )
         low, high = np.min(action), np.max(action)
         if not (low >= 0.0 and high <= 1.0):
             if not (np.isfinite(low) and np.isfinite(high)):

@@ -64,6 +64,7 @@ class SuiteEnv(gymnasium.Env):
         )
         self.metadata = {**self.metadata, "render_fps": int(round(1 / self.env.control_timestep()))}
         self._ended = False  # the last step ended the episode: the next needs a reset first
+        self._started = False  # reset() was called: a step before it read no observation
         self._told_clipped = False
 
     def _flat(self, observation) -> np.ndarray:
@@ -72,10 +73,13 @@ class SuiteEnv(gymnasium.Env):
     def reset(self, *, seed=None, options=None):
         """Start an episode (a seed reloads the task with that seed); returns (observation, info)."""
         super().reset(seed=seed)
+        if options:  # gymnasium passes options through; this task takes none
+            raise ValueError(f"reset: this environment takes no options, got {sorted(options)}")
         if seed is not None:  # a seeded task: its targets and starts follow the seed
             self.env = load(self.domain, self.task, task_kwargs={**self.task_kwargs, "random": int(seed)})
         time_step = self.env.reset()
         self._ended = False
+        self._started = True
         return self._flat(time_step.observation), {}
 
     def step(self, action):
@@ -83,9 +87,15 @@ class SuiteEnv(gymnasium.Env):
         (observation, reward, terminated, truncated, info) with ``info["success"]``. Actions
         outside [0, 1] are clipped (a warning says so, once per environment); a non-finite
         action, a wrong shape, or a step after the episode ended (call ``reset``) is an error."""
+        if not self._started:  # dm_control's first step would read a None reward
+            raise RuntimeError("step() before reset(): call reset() to start an episode")
         if self._ended:
             raise RuntimeError(
                 "the episode has ended (truncated at its time limit): call reset() before step()"
+            )
+        if np.asarray(action).dtype.kind not in "fiu":  # complex was cast with numpy's warning, text parsed
+            raise ValueError(
+                f"action must be real pressure fractions in [0, 1], got an array of dtype {np.asarray(action).dtype}"
             )
         action = np.asarray(action, dtype=np.float64)
         if action.shape != self.action_space.shape:
