@@ -193,18 +193,26 @@ class Muscle:
             raise MuscleError(f"muscle 'stress' must be a StressLaw, got {self.stress!r}")
         if not isinstance(self.name, str):
             raise MuscleError(f"muscle 'name' must be a string, got {self.name!r}")
+        # the plugin's bounds (efam_muscle.c, and the muscle-file reader's): outside them a value
+        # is a unit slip (a rest length of 170 m: mm written as m), not a muscle
         checks = {
-            "rest_length_m": self.rest_length_m > 0,
-            "rest_diameter_m": self.rest_diameter_m > 0,
-            "theta_rest_deg": 0 < self.theta_rest_deg < 90,
-            "bladder_volume_m3": self.bladder_volume_m3 > 0,
-            "deadband_Pa": self.deadband_Pa >= 0,
-            "lock_stiffness_N_per_m": self.lock_stiffness_N_per_m >= 0,
+            "rest_length_m": (
+                1e-4 <= self.rest_length_m <= 10.0,
+                "must be in 0.0001 .. 10 m (was it in mm?)",
+            ),
+            "rest_diameter_m": (
+                1e-4 <= self.rest_diameter_m <= 10.0,
+                "must be in 0.0001 .. 10 m (was it in mm?)",
+            ),
+            "theta_rest_deg": (0 < self.theta_rest_deg < 90, "must be in (0, 90) deg"),
+            "bladder_volume_m3": (self.bladder_volume_m3 > 0, "must be positive"),
+            "deadband_Pa": (0 <= self.deadband_Pa < 1e6, "must be in 0 .. 1e6 Pa (was it in kPa?)"),
+            "lock_stiffness_N_per_m": (0 <= self.lock_stiffness_N_per_m <= 1e9, "must be in 0 .. 1e9 N/m"),
         }
-        for key, ok in checks.items():
+        for key, (ok, rule) in checks.items():
             value = getattr(self, key)
             if not (math.isfinite(value) and ok):
-                raise MuscleError(f"muscle constant '{key}' is invalid: {value!r}")
+                raise MuscleError(f"muscle constant '{key}' is invalid: {value!r} ({rule})")
         theta = math.radians(self.theta_rest_deg)
         turns = self.rest_length_m / (math.pi * self.rest_diameter_m * math.tan(theta))  # Eq. 4
         thread = self.rest_length_m / math.sin(theta)  # Eq. 3

@@ -245,6 +245,11 @@ def _constants(muscle):
         ({"rest_length_m": True}, "'rest_length_m' must be a number"),  # was a 1 m muscle
         ({"stress": "exponential_decay"}, "'stress' must be a StressLaw"),  # was an AttributeError
         ({"name": 3}, "'name' must be a string"),
+        # values the plugin and the muscle-file reader refuse (a 170 m muscle's free length was
+        # 453 m; a 5 MPa dead band never inflates; 1e15 N/m pushed -2.3e14 N)
+        ({"rest_length_m": 170.0}, r"'rest_length_m' is invalid: 170.0 \(.*was it in mm\?\)"),
+        ({"deadband_Pa": 5e6}, r"'deadband_Pa' is invalid: .*was it in kPa\?"),
+        ({"lock_stiffness_N_per_m": 1e15}, r"'lock_stiffness_N_per_m' is invalid: .*0 \.\. 1e9 N/m"),
     ],
 )
 def test_muscle_constructor_refuses_wrong_types_naming_the_field(change, words):
