@@ -95,6 +95,13 @@ def test_view_opens_the_viewer_with_the_compiled_model(tmp_path, monkeypatch):
             lambda xml: xml.replace('tendon="t2">', 'tendon="t2" ctrlrange="0 500" ctrllimited="true">'),
             r"actuator 'm2': its control range tops out at 500 Pa.*was ctrlrange written in kPa",
         ),
+        # a negative pressure lag: MuJoCo fills instantly without a word
+        (
+            lambda xml: xml.replace(
+                'tendon="t2">', 'tendon="t2" dyntype="filterexact" dynprm="-0.05" actdim="1">'
+            ),
+            r"actuator 'm2': its pressure lag dynprm\[0\] = -0.05 s must be a time constant >= 0",
+        ),
     ],
 )
 def test_view_check_refuses_a_model_whose_muscles_cannot_be_what_it_says(tmp_path, capsys, edit, words):
