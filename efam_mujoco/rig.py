@@ -91,6 +91,10 @@ class RigOptions:
             raise ValueError(
                 f"RigOptions.timestep_s must be at most 0.01 s (a muscle rig), got {self.timestep_s!r}"
             )
+        if isinstance(self.effects, (str, dict)):  # tuple('friction') is its letters
+            raise ValueError(
+                f"RigOptions effects must be a list of (name, parameters) pairs, got {self.effects!r}"
+            )
         object.__setattr__(self, "effects", tuple(self.effects))
         actuator_dynamics(self.effects, self.pressure_lag_s)  # one lag, or an error
         load_cell_offset(self.effects)  # validates every effect's parameters

@@ -100,3 +100,13 @@ def test_a_law_infinitely_stiff_at_rest_settles_in_its_limit_cycle(capsys):
 def test_rig_refuses_inputs_that_gave_plausible_looking_wrong_answers(call, words):
     with pytest.raises(ValueError if "unstable" not in words else RuntimeError, match=words):
         call(load_muscle("FAM1"))
+
+
+@pytest.mark.parametrize(
+    "effects", ["friction", [("friction",)], [("bogus",)], [{"name": "friction"}], ["friction"]]
+)
+def test_effects_that_are_not_name_parameter_pairs_are_refused_by_name(effects):
+    # a bare 'friction' was unpacked into its letters ("not enough values to unpack (expected 2,
+    # got 1)"), ('bogus',) said "too many values to unpack"
+    with pytest.raises(ValueError, match=r"effects must be (a list of )?\(name, parameters\) pairs"):
+        rig.stroke_forces(load_muscle("FAM1"), 3e5, [0.2], effects=effects)

@@ -286,13 +286,24 @@ def effects_config(effects=None) -> dict[str, str]:
 
 
 def _effect_pairs(effects) -> list[tuple[str, dict]]:
+    """``effects`` as (name, parameters) pairs: pairs, or the diagnosis report's dicts with
+    ``name`` and ``parameters``; anything else is refused by name (a bare 'friction' was
+    unpacked into its letters: "not enough values to unpack")."""
+    if isinstance(effects, (str, dict)):
+        raise ValueError(f"effects must be a list of (name, parameters) pairs, got {effects!r}")
     out = []
     for effect in effects or ():
-        if isinstance(effect, dict):
+        if isinstance(effect, dict) and {"name", "parameters"} <= set(effect):
             out.append((effect["name"], effect["parameters"]))
+        elif (
+            isinstance(effect, (tuple, list)) and len(effect) == 2 and isinstance(effect[0], str)
+            and isinstance(effect[1], dict)
+        ):  # fmt: skip
+            out.append((effect[0], effect[1]))
         else:
-            name, values = effect
-            out.append((name, values))
+            raise ValueError(
+                f"effects must be (name, parameters) pairs, e.g. ('friction', {{'f0_N': 2.0}}), got {effect!r}"
+            )
     return out
 
 
