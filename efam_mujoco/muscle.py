@@ -46,6 +46,13 @@ NEUTRAL_BRAID_ANGLE_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
 
 #: Default lock-out stiffness beyond the admissible length range, N/m.
 DEFAULT_LOCK_STIFFNESS = 2.0e4
+#: What a muscle can be (the plugin's bounds in efam_muscle.c; the muscle-file reader refuses
+#: the same with the key's unit in its words): a rest length or diameter (m), the largest dead
+#: band (Pa: the package drives a muscle with at most 1000 kPa, so at or above it the muscle never
+#: inflates) and the stiffest lock-out spring (N/m)
+SIZE_RANGE_M = (1e-4, 10.0)
+MAX_DEADBAND_PA = 1.0e6
+MAX_LOCK_STIFFNESS_N_PER_M = 1e9
 #: gauge pressures ``free_length`` searches at: from vacuum to 100 MPa (past any fluidic muscle)
 ATMOSPHERE_PA = 101325.0
 MAX_GAUGE_PRESSURE_PA = 100e6
@@ -197,17 +204,23 @@ class Muscle:
         # is a unit slip (a rest length of 170 m: mm written as m), not a muscle
         checks = {
             "rest_length_m": (
-                1e-4 <= self.rest_length_m <= 10.0,
+                SIZE_RANGE_M[0] <= self.rest_length_m <= SIZE_RANGE_M[1],
                 "must be in 0.0001 .. 10 m (was it in mm?)",
             ),
             "rest_diameter_m": (
-                1e-4 <= self.rest_diameter_m <= 10.0,
+                SIZE_RANGE_M[0] <= self.rest_diameter_m <= SIZE_RANGE_M[1],
                 "must be in 0.0001 .. 10 m (was it in mm?)",
             ),
             "theta_rest_deg": (0 < self.theta_rest_deg < 90, "must be in (0, 90) deg"),
             "bladder_volume_m3": (self.bladder_volume_m3 > 0, "must be positive"),
-            "deadband_Pa": (0 <= self.deadband_Pa < 1e6, "must be in 0 .. 1e6 Pa (was it in kPa?)"),
-            "lock_stiffness_N_per_m": (0 <= self.lock_stiffness_N_per_m <= 1e9, "must be in 0 .. 1e9 N/m"),
+            "deadband_Pa": (
+                0 <= self.deadband_Pa < MAX_DEADBAND_PA,
+                "must be in 0 .. 1e6 Pa (was it in kPa?)",
+            ),
+            "lock_stiffness_N_per_m": (
+                0 <= self.lock_stiffness_N_per_m <= MAX_LOCK_STIFFNESS_N_PER_M,
+                "must be in 0 .. 1e9 N/m",
+            ),
         }
         for key, (ok, rule) in checks.items():
             value = getattr(self, key)

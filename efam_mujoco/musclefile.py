@@ -31,7 +31,16 @@ from pathlib import Path
 import numpy as np
 
 from .files import strict_json, write_json_atomic
-from .muscle import DEFAULT_LOCK_STIFFNESS, NEUTRAL_BRAID_ANGLE_DEG, Geometry, Muscle, MuscleError
+from .muscle import (
+    DEFAULT_LOCK_STIFFNESS,
+    MAX_DEADBAND_PA,
+    MAX_LOCK_STIFFNESS_N_PER_M,
+    NEUTRAL_BRAID_ANGLE_DEG,
+    SIZE_RANGE_M,
+    Geometry,
+    Muscle,
+    MuscleError,
+)
 from .stress import E1_PLAUSIBLE_PA, LAW_NAMES, StressLaw, StressLawError
 from .units import REQUIRED, UnitError, read_quantity, split_unit
 
@@ -63,7 +72,7 @@ _CONSTANTS = (("rest_length", "length"), ("rest_diameter", "length"), ("theta_re
 #: Plausible ranges (SI) of what a muscle file gives; outside them a value cannot be physical
 #: for a fluidic muscle and is most likely in another unit than its key says.
 PLAUSIBLE = {
-    "length": (1e-4, 10.0),  # 0.1 mm .. 10 m
+    "length": SIZE_RANGE_M,  # 0.1 mm .. 10 m, the Muscle's own bounds
     "volume": (1e-12, 1.0),
     "pressure": (0.0, 10e6),  # a dead band up to 10 MPa
     "angle": (0.0, 3.141592653589793 / 2),
@@ -76,11 +85,10 @@ MIN_WALL_M = 1e-5
 MAX_COEFFICIENT = 1e12
 #: Pressures at which a muscle file's model must give a finite force at every admissible length.
 CHECK_PRESSURES_PA = (0.0, 50e3, 200e3, 500e3, 1e6)
-#: A dead band must lie below the largest pressure the package drives a muscle with: the rig's
-#: control range and the recordings' default rated pressure (``rig.RigOptions.max_pressure_Pa``,
-#: ``recordings.DEFAULT_RATED_PRESSURE_PA``, both 1000 kPa; the paper's dead bands are 34 kPa).
-#: At or above it the muscle is never inflated; not imported from those modules, which import this one.
-MAX_DEADBAND_PA = 1.0e6
+#: A dead band must lie below the largest pressure the package drives a muscle with
+#: (``muscle.MAX_DEADBAND_PA``): the rig's control range and the recordings' default rated
+#: pressure (``rig.RigOptions.max_pressure_Pa``, ``recordings.DEFAULT_RATED_PRESSURE_PA``, both
+#: 1000 kPa; the paper's dead bands are 34 kPa). At or above it the muscle is never inflated.
 #: The resting length over the bladder's working length (its length less what the
 #: fittings take, Eq. 7) is at most this, and at least its inverse. The model takes the bladder
 #: as unstrained at the resting length (Eq. 12); fabrication and cycling lengthen it by
@@ -411,7 +419,11 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             )
         stress = stress_from_document(doc, label, law)
         lock = doc.get("lock_stiffness_N_per_m", DEFAULT_LOCK_STIFFNESS)
-        if isinstance(lock, bool) or not isinstance(lock, (int, float)) or not 0 <= lock <= 1e9:
+        if (
+            isinstance(lock, bool)
+            or not isinstance(lock, (int, float))
+            or not 0 <= lock <= MAX_LOCK_STIFFNESS_N_PER_M
+        ):
             raise MuscleFileError(
                 f"{label}: key 'lock_stiffness_N_per_m' must be a number in [0, 1e9], got {_json_type(lock)}"
             )

@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 from .muscle import Muscle
-from .plugin import actuator_dynamics, effects_config, instance_xml
+from .plugin import actuator_dynamics, effect_pairs, effects_config, instance_xml
 from .plugin import load as load_plugin
 from .units import check_pressure_Pa, check_within
 
@@ -91,10 +91,7 @@ class RigOptions:
             raise ValueError(
                 f"RigOptions.timestep_s must be at most 0.01 s (a muscle rig), got {self.timestep_s!r}"
             )
-        if isinstance(self.effects, (str, dict)):  # tuple('friction') is its letters
-            raise ValueError(
-                f"RigOptions effects must be a list of (name, parameters) pairs, got {self.effects!r}"
-            )
+        effect_pairs(self.effects)  # only (name, parameters) pairs: tuple('friction') is its letters
         object.__setattr__(self, "effects", tuple(self.effects))
         actuator_dynamics(self.effects, self.pressure_lag_s)  # one lag, or an error
         load_cell_offset(self.effects)  # validates every effect's parameters

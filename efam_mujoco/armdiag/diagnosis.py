@@ -47,11 +47,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..units import PRESSURE, split_unit
 from . import design
 from .effects import LIBRARY, get, refit_knobs, refit_params
 from .fit import FitResult, fit, residual
 from .locate import locate, noise_floor
 from .recording import (
+    MIN_COMMAND_SHARE,
     TIME,
     TYPICAL_INTERVAL_S,
     ArmRecording,
@@ -59,6 +61,7 @@ from .recording import (
     ArmRecordingWarning,
     check_against_model,
     unit_hint,
+    units_putting,
 )
 from .replay import SETTLE_S, Knobs, Replayer, default_threads, with_values
 from .specfile import model_limits
@@ -249,19 +252,17 @@ def _check_command_unit(replayer: Replayer, rec: ArmRecording, valid: np.ndarray
     read as 75 kPa barely bends the arm). Only units that keep the largest command inside the
     model's range and above ``MIN_COMMAND_SHARE`` of it are tried, as the muscles' gains of one
     batched replay: a test commanded at the usual pressures tries none and costs nothing."""
-    from ..units import PRESSURE, split_unit
-    from .recording import MIN_COMMAND_SHARE
-
     columns = rec.meta.get("command_columns") or [f"p_{m}_Pa" for m in rec.muscles]
     unit = split_unit(columns[0])[1]
     top = float(np.max(replayer.max_Pa))
     highest = float(np.nanmax(rec.command_Pa)) if rec.command_Pa.size else 0.0
     if unit not in PRESSURE or not (math.isfinite(top) and highest > 0):
         return
+    number = highest / PRESSURE[unit]  # the largest command as written
     options = [
         (u, PRESSURE[u] / PRESSURE[unit])
-        for u in PRESSURE
-        if u != unit and MIN_COMMAND_SHARE * top <= highest * PRESSURE[u] / PRESSURE[unit] <= top
+        for u in units_putting(number, MIN_COMMAND_SHARE * top, top)
+        if u != unit
     ]
     if not options:
         return

@@ -318,6 +318,12 @@ def _line(rec: ArmRecording, row: int) -> str:
     return f"line {lines[row]}" if lines is not None and len(lines) == len(rec) else f"sample {row + 1}"
 
 
+def units_putting(number: float, low_Pa: float, high_Pa: float) -> list[str]:
+    """The pressure units under which a command column's ``number`` (as written) would lie in
+    ``low_Pa`` .. ``high_Pa``: the units a unit hint or a re-read may offer."""
+    return [u for u in PRESSURE if low_Pa <= number * PRESSURE[u] <= high_Pa]
+
+
 def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m: float) -> list[str]:
     """Check a recording against its arm model before any replay.
 
@@ -344,7 +350,7 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
         far = np.flatnonzero(p > COMMAND_REFUSE_FACTOR * top)
         if far.size:
             r = int(far[0])
-            fits = [u for u in PRESSURE if np.max(p) / shown * PRESSURE[u] <= top]
+            fits = units_putting(np.max(p) / shown, 0.0, top)
             hint = ""
             if fits:  # the unit that puts the column's largest value nearest the top pressure
                 best = max(fits, key=lambda u: PRESSURE[u])
@@ -371,7 +377,7 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
             unit = split_unit(name)[1]
             shown = PRESSURE.get(unit, 1.0)
             unit = unit if unit in PRESSURE else "Pa"
-            fits = [u for u in PRESSURE if MIN_COMMAND_SHARE * top <= highest / shown * PRESSURE[u] <= top]
+            fits = units_putting(highest / shown, MIN_COMMAND_SHARE * top, top)
             hint = ""
             if fits:  # the unit that puts the largest command nearest the top pressure
                 best = max(fits, key=lambda u: PRESSURE[u])

@@ -272,7 +272,7 @@ def effects_config(effects=None) -> dict[str, str]:
 
     keys: dict[str, str] = {}
     names = []
-    for name, values in _effect_pairs(effects):
+    for name, values in effect_pairs(effects):
         values = check_values(name, dict(values))
         if name in SENSOR_EFFECTS:
             continue
@@ -285,7 +285,7 @@ def effects_config(effects=None) -> dict[str, str]:
     return {"effects": ",".join(names), **keys} if names else {}
 
 
-def _effect_pairs(effects) -> list[tuple[str, dict]]:
+def effect_pairs(effects) -> list[tuple[str, dict]]:
     """``effects`` as (name, parameters) pairs: pairs, or the diagnosis report's dicts with
     ``name`` and ``parameters``; anything else is refused by name (a bare 'friction' was
     unpacked into its letters: "not enough values to unpack")."""
@@ -316,7 +316,7 @@ def actuator_dynamics(effects=None, lag_s: float | None = None) -> str:
     volume term to MuJoCo's lag, so the two time constants must be one; ``actearly`` makes the
     lag include the current sample, as the effect's reference does; a ``delay_s`` rides on MuJoCo's
     ctrl delay, linearly interpolated). Empty for no dynamics."""
-    lag_effect = dict(_effect_pairs(effects)).get("pressure_lag", {})
+    lag_effect = dict(effect_pairs(effects)).get("pressure_lag", {})
     tau = lag_effect.get("tau_s")
     if tau is not None:
         if lag_s is not None and float(lag_s) != float(tau):

@@ -451,6 +451,15 @@ class EfamPhysics(mujoco.Physics):
 # -------------------------------------------------------------------------------- tasks
 
 
+def refuse_unreal_action(action) -> None:
+    """Refuse an action that is not real numbers, naming its dtype: complex, text or objects
+    ended deep in numpy's casting rules (or, cast by the gym adapter, went through with numpy's
+    warning)."""
+    dtype = np.asarray(action).dtype
+    if dtype.kind not in "fiu":
+        raise ValueError(f"action must be real pressure fractions in [0, 1], got an array of dtype {dtype}")
+
+
 class EfamTask(base.Task):
     """Base task: actions are pressure fractions of rated in [0, 1]; an episode starts from a
     random reachable shape (random pressures within the workspace limits, held for
@@ -478,11 +487,7 @@ class EfamTask(base.Task):
                 f"action must hold one pressure fraction per muscle, shape {physics.views.ctrl.shape} "
                 f"(the action spec's), got shape {np.shape(action)}"
             )
-        kind = np.asarray(action).dtype.kind
-        if kind not in "fiu":  # complex, text or objects ended deep in numpy's casting rules
-            raise ValueError(
-                f"action must be real pressure fractions in [0, 1], got an array of dtype {np.asarray(action).dtype}"
-            )
+        refuse_unreal_action(action)
         low, high = np.min(action), np.max(action)
         if not (low >= 0.0 and high <= 1.0):
             if not (np.isfinite(low) and np.isfinite(high)):

@@ -93,10 +93,9 @@ class SuiteEnv(gymnasium.Env):
             raise RuntimeError(
                 "the episode has ended (truncated at its time limit): call reset() before step()"
             )
-        if np.asarray(action).dtype.kind not in "fiu":  # complex was cast with numpy's warning, text parsed
-            raise ValueError(
-                f"action must be real pressure fractions in [0, 1], got an array of dtype {np.asarray(action).dtype}"
-            )
+        common.refuse_unreal_action(
+            action
+        )  # before the float cast: complex was cast with a warning, text parsed
         action = np.asarray(action, dtype=np.float64)
         if action.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {action.shape}")
