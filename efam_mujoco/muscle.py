@@ -81,6 +81,24 @@ def _fluid_pressures(pressure_Pa, where: str) -> np.ndarray:
     return P
 
 
+def _lengths(length_m, what: str) -> np.ndarray:
+    """``length_m`` as an array of lengths a muscle can have, finite and above 0 m (ValueError
+    naming ``what``, the entry point and its argument, otherwise). One pass over the array: it
+    guards public entry points only, the force itself takes any input (see :meth:`Muscle.tension`)."""
+    try:
+        if length_m is None or isinstance(length_m, (str, bytes)):
+            raise TypeError
+        L = np.asarray(length_m, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be numbers (m), got {length_m!r}") from None
+    # NaN fails L > 0 and inf fails L < inf: one reduction catches all three
+    ok = (L > 0.0) & (L < math.inf)
+    if not ok.all():
+        value = float(L.ravel()[int(np.argmin(ok.ravel()))])
+        raise ValueError(f"{what}: {value!r} m is not a finite length above 0 m")
+    return L
+
+
 @dataclass(frozen=True)
 class Geometry:
     """What is measured while a muscle is made (paper Table 2), in SI.
@@ -276,8 +294,14 @@ class Muscle:
         return "extensile" if self.is_extensile else "contractile"
 
     def outer_radius(self, length_m):
-        """Eq. 10: R_o(L) = sqrt(B^2 - L^2) / (2 pi N)."""
-        L = np.asarray(length_m, dtype=float)
+        """Eq. 10: R_o(L) = sqrt(B^2 - L^2) / (2 pi N), 0 m from the thread length on. Lengths in
+        m; a NaN, an infinite or a length at or below 0 m is refused (it gave a radius)."""
+        return self._outer_radius(_lengths(length_m, "Muscle.outer_radius: length_m"))
+
+    def _outer_radius(self, L):
+        # unchecked, for callers that clip their lengths into the admissible range first: the
+        # force (a simulation's hot path) and the wall and strains (NaN in, NaN out, as before)
+        L = np.asarray(L, dtype=float)
         return np.sqrt(np.maximum(self.thread_length_m**2 - L * L, 0.0)) / (2 * math.pi * self.turns)
 
     def _wall(self, L, r_out):
@@ -287,12 +311,12 @@ class Muscle:
     def wall_thickness(self, length_m):
         """Eq. 11: t_B(L) = R_o - sqrt(R_o^2 - V_B / (pi L))."""
         L = np.clip(np.asarray(length_m, dtype=float), self.min_length_m, self.max_length_m)
-        return self._wall(L, self.outer_radius(L))
+        return self._wall(L, self._outer_radius(L))
 
     def strains(self, length_m):
         """Eqs. 12-13: longitudinal and circumferential (mid-wall) strains."""
         L = np.clip(np.asarray(length_m, dtype=float), self.min_length_m, self.max_length_m)
-        r_out = self.outer_radius(L)
+        r_out = self._outer_radius(L)
         t = self._wall(L, r_out)
         rest_mid = self.rest_outer_radius_m - self.rest_wall_thickness_m / 2
         return L / self.rest_length_m - 1.0, (r_out - t / 2) / rest_mid - 1.0
@@ -320,7 +344,7 @@ class Muscle:
         L = np.clip(L_raw, self.min_length_m, self.max_length_m)
 
         N, B, V = self.turns, self.thread_length_m, self.bladder_volume_m3
-        r_out = self.outer_radius(L)
+        r_out = self._outer_radius(L)
         t = self._wall(L, r_out)
         eps_z = L / self.rest_length_m - 1.0
         eps_c = (r_out - t / 2) / (self.rest_outer_radius_m - self.rest_wall_thickness_m / 2) - 1.0
@@ -412,8 +436,14 @@ class Muscle:
         return brentq(lambda L: self.tension(p, L), grid[i], grid[i + 1], xtol=1e-15, rtol=1e-14)
 
     def force_stroke(self, pressure_Pa: float, lengths_m):
-        """Tension over a stroke at fixed pressure (paper Fig. 6)."""
-        return self.tension(pressure_Pa, lengths_m)
+        """Tension over a stroke at fixed pressure (paper Fig. 6), N, paper sign. Pressure in Pa
+        (a warning below 1000 Pa), lengths in m; beyond the admissible lengths the lock-out
+        spring acts, as in :meth:`tension`. Unlike :meth:`tension` (a simulation step's 0 N), a
+        pressure no fluid can have or a length that is not finite and above 0 m is refused: a
+        NaN gave a curve of 0 N, a negative length a lock-out force of millions of N."""
+        P = _fluid_pressures(pressure_Pa, "Muscle.force_stroke")
+        check_pressure_Pa(P, "Muscle.force_stroke")
+        return self.tension(P, _lengths(lengths_m, "Muscle.force_stroke: lengths_m"))
 
 
 def _admissible_lengths(thread: float, turns: float, volume: float) -> tuple[float, float]:

@@ -486,6 +486,43 @@ def test_settle_refuses_pressures_mujoco_would_zero_or_clamp():
         arm.settle(model, data, [1e5, 1e5])
 
 
+def test_settle_refuses_times_and_step_counts_it_cannot_run():
+    """Before: a NaN or negative t_max_s returned 'not settled' without a step, inf ran until the
+    step bound; max_steps 0 or -5 warned of 'stopped after 0 steps', 2.5 ran 100 steps."""
+    model = arm.build_model(arm.ArmSpec(sections=(arm.paper_section(disks=2),), timestep_s=DT))
+    data = mujoco_data(model)
+    pressures = [1e5, 1e5, 1e5]
+    for bad in (-1.0, float("nan"), float("inf"), "6", None):
+        with pytest.raises(ValueError, match=r"arm\.settle: t_max_s must be a finite simulated time >= 0 s"):
+            arm.settle(model, data, pressures, t_max_s=bad)
+    for bad in (0, -5, 2.5, float("nan"), True, "100"):
+        with pytest.raises(
+            ValueError, match=r"arm\.settle: max_steps must be a whole number of MuJoCo steps >= 1"
+        ):
+            arm.settle(model, data, pressures, max_steps=bad)
+    assert data.time == 0.0  # refused before a step
+    # 0 s (static_equilibrium's data.time + 0 s) and a numpy integer stay allowed
+    assert arm.settle(model, data, pressures, t_max_s=0.0, max_steps=np.int64(100)) is False
+
+
+def test_equilibrium_refuses_a_tip_force_that_is_not_three_finite_newtons(monkeypatch):
+    """Before: (0, 0) ended in numpy's 'could not be broadcast', a NaN in scipy's 'y0 must be
+    finite', both after the MuJoCo arm was built and settled. Now refused first, by name (the
+    ``efam arm`` command has no tip-force flag: it always passes the default)."""
+    from efam_mujoco.arm import cli as arm_cli
+
+    def no_build(spec):
+        raise AssertionError("the arm was built before tip_force_N was checked")
+
+    monkeypatch.setattr(arm_cli, "build_model", no_build)
+    spec = arm.ArmSpec(sections=(arm.paper_section(disks=2),), timestep_s=DT)
+    for bad in ((0, 0), (float("nan"), 0.0, 0.0), (0.0, 0.0, float("inf")), [[1.0, 2.0, 3.0]], "xyz", None):
+        with pytest.raises(
+            ValueError, match=r"equilibrium: tip_force_N must be 3 finite numbers \(x, y, z in N"
+        ):
+            arm_cli.equilibrium(spec, [[1e5, 1e5, 1e5]], tip_force_N=bad)
+
+
 def mujoco_data(model):
     import mujoco
 

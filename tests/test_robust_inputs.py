@@ -421,6 +421,46 @@ def test_blocked_force_refuses_what_no_fluid_pressure_can_be(pressure):
     assert muscle.blocked_push(300e3) == pytest.approx(-muscle.blocked_tension(300e3))
 
 
+@pytest.mark.parametrize(
+    "call, words",
+    [
+        # a negative length met the lock-out spring: -5.75e6 N over the 'stroke'
+        (lambda m: m.force_stroke(300e3, -0.1), r"Muscle\.force_stroke: lengths_m: -0\.1 m is not a finite"),
+        (lambda m: m.force_stroke(300e3, [0.2, np.nan]), r"lengths_m: nan m"),  # was 0 N
+        (lambda m: m.force_stroke(300e3, 0.0), r"lengths_m: 0\.0 m .* above 0 m"),
+        (lambda m: m.force_stroke(300e3, "0.2"), r"lengths_m must be numbers \(m\)"),
+        (lambda m: m.force_stroke(np.nan, [0.17, 0.2]), r"Muscle\.force_stroke: pressure nan Pa"),  # was 0 N
+        (lambda m: m.force_stroke(np.inf, 0.2), r"Muscle\.force_stroke: pressure inf Pa"),
+        (lambda m: m.force_stroke(-5e5, 0.2), r"pressure -500000\.0 Pa is outside"),  # below vacuum
+        (lambda m: m.outer_radius(-1.0), r"Muscle\.outer_radius: length_m: -1\.0 m"),  # was 0 m
+        (lambda m: m.outer_radius(0.0), r"length_m: 0\.0 m"),  # was the thread's whole radius
+        (lambda m: m.outer_radius([0.2, np.inf]), r"length_m: inf m"),
+        (lambda m: m.outer_radius(None), r"length_m must be numbers \(m\), got None"),
+    ],
+)
+def test_force_stroke_and_outer_radius_refuse_lengths_and_pressures_no_muscle_has(call, words):
+    """Before: a NaN length or pressure gave a force-stroke curve of 0 N, a negative length a
+    lock-out force of millions of N, and the radius of a NaN length was NaN, of 0 m or a negative
+    length a number. The simulation's own force stays total (0 N, lock-out; test_muscle.py)."""
+    with pytest.raises(ValueError, match=words):
+        call(load_muscle("FAM1"))
+
+
+def test_force_stroke_and_outer_radius_are_unchanged_for_lengths_a_muscle_has():
+    """The checks change no number: beyond the admissible lengths the lock-out spring acts, past
+    the thread length the radius is 0 m, and the force the diagnosis and arm call takes anything."""
+    muscle = load_muscle("FAM1")
+    L = np.linspace(0.5 * muscle.min_length_m, 1.2 * muscle.thread_length_m, 50)
+    np.testing.assert_array_equal(muscle.force_stroke(300e3, L), muscle.tension(300e3, L))
+    assert muscle.force_stroke(-50e3, 0.2) == muscle.tension(0.0, 0.2)  # under zero gauge: zero
+    assert muscle.outer_radius(1.1 * muscle.thread_length_m) == 0.0
+    assert muscle.outer_radius(muscle.rest_length_m) == pytest.approx(muscle.rest_diameter_m / 2, rel=1e-12)
+    assert muscle.tension(300e3, np.nan) == 0.0 and np.isfinite(muscle.tension(300e3, -1.0))
+    assert np.isnan(muscle.wall_thickness(np.nan))  # the clipped helpers: NaN in, NaN out, as before
+    with pytest.warns(UserWarning, match=r"Muscle\.force_stroke: pressure 300 Pa is below 1000 Pa"):
+        muscle.force_stroke(300.0, 0.2)
+
+
 def test_arm_spec_refuses_text_flags_and_sizes_no_bench_arm_has():
     """Before: gravity='no' and hold_tip='false' were taken as true (a text is truthy); a radius in
     mm written as metres, a payload of 1e6 kg and an 11-day valve lag were accepted (the CLI

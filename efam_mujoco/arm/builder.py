@@ -21,6 +21,7 @@ joints, so the muscle forces are exact functions of the strains and conservative
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +32,7 @@ import numpy as np
 from .. import plugin
 from ..files import write_text_atomic
 from ..muscle import Muscle
-from ..units import check_pressure_Pa
+from ..units import as_float, check_pressure_Pa
 from .masses import FITTING_LENGTH_M, FITTING_RADIUS_M
 from .spec import ORIENTATIONS, ArmSpec, SectionSpec, arm_1x3, arm_3x3
 from .timestep import ROUND_TIMESTEPS_S, apply_timestep, default_integrator, force_jacobian, generalized_force
@@ -494,7 +495,18 @@ def settle(
     """Hold the pressures and step until the arm is still (or ``t_max_s`` of simulated time, or
     ``max_steps`` steps: then a warning says how far it got); returns whether it settled. Raises
     if the state stops being finite, and for pressures that are not one finite value per
-    actuator inside its control range (MuJoCo would zero a NaN and clamp the rest silently)."""
+    actuator inside its control range (MuJoCo would zero a NaN and clamp the rest silently),
+    a ``t_max_s`` that is not a finite time >= 0 s and a ``max_steps`` that is not a whole
+    number >= 1."""
+    # a NaN or negative t_max_s returned 'not settled' at once without a step, inf ran until
+    # max_steps; max_steps 0 or -5 warned of 'stopped after 0 steps', 2.5 ran 100 steps
+    t_end = as_float(t_max_s)
+    if not (math.isfinite(t_end) and t_end >= 0.0):
+        raise ValueError(f"arm.settle: t_max_s must be a finite simulated time >= 0 s, got {t_max_s!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps < 1:
+        raise ValueError(
+            f"arm.settle: max_steps must be a whole number of MuJoCo steps >= 1, got {max_steps!r}"
+        )
     pressures = np.asarray(pressures_Pa, dtype=float)
     if pressures.ndim > 1 and pressures.size == model.nu:
         pressures = pressures.ravel()  # a nested list per section is the same pressures

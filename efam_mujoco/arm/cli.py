@@ -67,7 +67,20 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
 
     A continuum reference that does not converge is reported (``continuum_error``, its tip
     ``None``), never raised; ``agreement`` says whether the two tips agree within
-    :data:`AGREEMENT_PCT` and, when not, the likely reasons."""
+    :data:`AGREEMENT_PCT` and, when not, the likely reasons. A ``tip_force_N`` that is not 3
+    finite numbers (x, y, z in N) is refused."""
+    # checked before the MuJoCo work: (0, 0) ended in numpy's "could not be broadcast", a NaN in
+    # scipy's "y0 must be finite", both from the continuum step after the arm was built and settled
+    try:
+        if isinstance(tip_force_N, (str, bytes)):
+            raise TypeError
+        force = np.asarray(tip_force_N, dtype=float)
+    except (TypeError, ValueError):
+        force = None
+    if force is None or force.shape != (3,) or not np.all(np.isfinite(force)):
+        raise ValueError(
+            f"equilibrium: tip_force_N must be 3 finite numbers (x, y, z in N, base frame), got {tip_force_N!r}"
+        )
     pressures = [list(p) for p in pressures_Pa]
     steps = ("building the arm, choosing its time step", "MuJoCo rest state", "continuum reference")
     for step in progress(steps, "efam arm", total=len(steps)):
