@@ -111,7 +111,7 @@ def test_bladder_share_plus_pressure_term_is_eq2(fam1):
 
 VALUES = {
     "friction": dict(f0_N=2.0, f1_N_per_MPa=8.0, slip_strain=0.004, slip_kPa=8.0, relax_per_s=0.05),
-    "viscoelasticity": dict(k0_N=40.0, k1_N_per_MPa=60.0, g_bladder=0.2, tau_s=3.0),
+    "viscoelasticity": dict(k0_N=40.0, k1_N_per_MPa=60.0, g_bladder=0.2, tau_s=3.0, g_slow_bladder=0.1),
     "end_effects": dict(kappa0=0.05, kappa1=0.1, P_e_kPa=80.0),
     "braid_compliance": dict(b1_per_MPa=0.02, b2_per_MPa2=-0.01),
     "softening": dict(a=0.1, width=0.03),

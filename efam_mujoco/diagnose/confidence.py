@@ -115,9 +115,9 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -2.505  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain + offset[term])))
-    b: float = 6.108
-    c: float = -4.933
+    a: float = -4.028  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain + offset[term])))
+    b: float = 7.927
+    c: float = -4.368
     #: a draw whose best two effects are within this share of held-out RMS is half a win each
     #: (not fitted). Between an effect and ``none`` the relevance margin decides alone: a tie
     #: there too left a dead zone (an effect beating ``none`` by 3-5 % split 50:50 however much
@@ -131,8 +131,8 @@ class Calibration:
     #: an unmodelled effect most often hides behind (a braid stretch, end effects) sit below 0
     effect_offset: dict[str, float] = field(
         default_factory=lambda: {
-            "braid_compliance": -1.449, "drift": -0.558, "end_effects": -1.106, "force_offset": 0.190,
-            "friction": 0.292, "pressure_lag": 1.421, "softening": 1.599, "viscoelasticity": -0.396,
+            "braid_compliance": -1.403, "drift": -0.416, "end_effects": -1.020, "force_offset": 0.224,
+            "friction": 0.475, "pressure_lag": 1.342, "softening": 1.602, "viscoelasticity": -0.817,
         }
     )  # fmt: skip
     offset_ridge: float = 0.3  # the ridge weight on the offsets the cross-validation chose

@@ -551,18 +551,31 @@ class Friction(Effect):
 
 
 class Viscoelasticity(Effect):
-    """Viscoelasticity: Maxwell branches of one relaxation time. One on the strain (a stiffness
-    that grows with pressure acting on x minus its lagged value); one on the bladder's own force,
-    Fung's quasi-linear form (the share g of each change of the elastic force relaxes), which a
-    pressure change moves at a fixed length as well: without it an isometric test's relaxation
-    had no viscoelastic term to take it (a Zener solid on isometric ramps was answered
-    `friction`), only friction's relaxing stuck force, a drift or a pressure lag."""
+    """Viscoelasticity: Maxwell branches. One on the strain (a stiffness that grows with pressure
+    acting on x minus its lagged value); one on the bladder's own force, Fung's quasi-linear form
+    (the share g of each change of the elastic force relaxes), which a pressure change moves at a
+    fixed length as well: without it an isometric test's relaxation had no viscoelastic term to
+    take it (a Zener solid on isometric ramps was answered `friction`), only friction's relaxing
+    stuck force, a drift or a pressure lag. A second bladder branch relaxes ``SLOW_RATIO`` times
+    slower (at most ``SLOW_MAX_S``): rubber relaxes over decades of time, not at one rate, and
+    a spectrum that broad loads and unloads almost independently of the rate, as friction does.
+    With one branch, relaxation spread over 0.4-160 s at fixed lengths was answered `friction`
+    at p 0.86-0.96; two branches a decade and more apart span it (Prony series, as rubber's
+    relaxation is fitted in practice), for one linear amplitude more."""
+
+    #: the slow bladder branch's relaxation time over the fast one's, and its ceiling (s): a
+    #: slower branch over a test of minutes is a drift, which the library names apart
+    SLOW_RATIO = 20.0
+    SLOW_MAX_S = 1000.0
 
     def __init__(self):
         super().__init__(
             name="viscoelasticity",
             summary="rate-dependent stiffness that relaxes during holds (Maxwell branches on the strain and the bladder)",
-            equation="dF = -(k0 + k1 P_MPa) (x - w) + g (F_b - lag(F_b, tau)),  w = lag(x, tau)",
+            equation=(
+                "dF = -(k0 + k1 P_MPa) (x - w) + g (F_b - lag(F_b, tau)) + g_slow (F_b - lag(F_b, tau_slow)),  "
+                "w = lag(x, tau),  tau_slow = min(20 tau, 1000 s)"
+            ),
             params=(
                 Param("k0_N", 0.0, 5000.0, meaning="Maxwell branch stiffness per unit strain"),
                 Param("k1_N_per_MPa", 0.0, 10000.0, meaning="its growth with pressure"),
@@ -574,30 +587,42 @@ class Viscoelasticity(Effect):
                     default=0.0,
                 ),
                 Param("tau_s", 0.1, 500.0, True, (0.5, 1.5, 4.0, 10.0, 25.0, 60.0, 150.0), "relaxation time"),
+                Param(
+                    "g_slow_bladder", 0.0, 1.0, meaning="share relaxing at 20 tau (<= 1000 s)", default=0.0
+                ),
             ),
-            state=("w", "b"),
-            plugin="efam.muscle keys viscoelasticity.*; lag states on the strain and on the bladder's force",
+            state=("w", "b", "b_slow"),
+            plugin="efam.muscle keys viscoelasticity.*; lag states on the strain and on the bladder's force (two)",
             signature="hysteresis that grows with the rate and relaxes during holds",
         )
+
+    @classmethod
+    def slow_tau(cls, tau_s: float) -> float:
+        """The slow bladder branch's relaxation time (s) for a fast one of ``tau_s``."""
+        return min(cls.SLOW_RATIO * tau_s, cls.SLOW_MAX_S)
 
     def _design(self, ctx, shape):
         tau = shape["tau_s"]
         d = ctx.x - lag(ctx.t, ctx.x, tau, ctx.starts)
         bladder = ctx.bladder_push()
         db = bladder - lag(ctx.t, bladder, tau, ctx.starts)
-        return np.zeros(ctx.n), _gate(ctx, np.column_stack([-d, -ctx.P_MPa * d, db]))
+        db_slow = bladder - lag(ctx.t, bladder, self.slow_tau(tau), ctx.starts)
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([-d, -ctx.P_MPa * d, db, db_slow]))
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the Maxwell branches; see :class:`Effect.step`."""
         bladder = s.bladder_push
         if s.first:
-            state[0], state[1] = s.x, bladder
+            state[0], state[1], state[2] = s.x, bladder, bladder
         else:
             a = 1.0 - math.exp(-s.dt / v["tau_s"])
+            a_slow = 1.0 - math.exp(-s.dt / self.slow_tau(v["tau_s"]))
             state[0] += a * (s.x - state[0])
             state[1] += a * (bladder - state[1])
+            state[2] += a_slow * (bladder - state[2])
         force = -(v["k0_N"] + v["k1_N_per_MPa"] * s.P / 1e6) * (s.x - state[0])
         force += v.get("g_bladder", 0.0) * (bladder - state[1])
+        force += v.get("g_slow_bladder", 0.0) * (bladder - state[2])
         return force if s.engaged else 0.0
 
 

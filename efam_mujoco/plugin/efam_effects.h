@@ -76,9 +76,13 @@ static const EffectSpec kEffects[NEFFECT] = {
       {"relax_per_s", 0.0, 10.0, 1, 0.0}},
      1},
     {"viscoelasticity",
-     4,
-     {{"k0_N", 0.0, 5000.0}, {"k1_N_per_MPa", 0.0, 10000.0}, {"g_bladder", 0.0, 1.0, 1, 0.0}, {"tau_s", 0.1, 500.0}},
-     2},
+     5,
+     {{"k0_N", 0.0, 5000.0},
+      {"k1_N_per_MPa", 0.0, 10000.0},
+      {"g_bladder", 0.0, 1.0, 1, 0.0},
+      {"tau_s", 0.1, 500.0},
+      {"g_slow_bladder", 0.0, 1.0, 1, 0.0}},
+     3},
     {"end_effects", 3, {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}}, 0},
     {"braid_compliance", 2, {{"b1_per_MPa", 0.0, 0.2}, {"b2_per_MPa2", -0.2, 0.2}}, 0},
     {"softening", 2, {{"a", 0.0, 1.0}, {"width", 1e-3, 0.5}}, 1},
@@ -449,19 +453,29 @@ static double friction_step(const EffectsMuscle* k, const double* v, double* z, 
   return s->engaged ? force : 0.0;
 }
 
-// Viscoelasticity.step: Maxwell branches on the strain and on the bladder's force.
+// Viscoelasticity.SLOW_RATIO and SLOW_MAX_S: the slow bladder branch's relaxation time.
+#define FX_VISCO_SLOW_RATIO 20.0
+#define FX_VISCO_SLOW_MAX_S 1000.0
+
+// Viscoelasticity.step: Maxwell branches on the strain and on the bladder's force (a fast and a
+// slow one).
 static double viscoelasticity_step(const EffectsMuscle* k, const double* v, double* w, const EffectSample* s) {
   double bladder = -fx_bladder_tension(k, s->P, s->L);
   if (s->first) {
     w[0] = s->x;
     w[1] = bladder;
+    w[2] = bladder;
   } else {
     double a = 1.0 - exp(-s->dt / v[3]);
+    double tau_slow = fmin(FX_VISCO_SLOW_RATIO * v[3], FX_VISCO_SLOW_MAX_S);
+    double a_slow = 1.0 - exp(-s->dt / tau_slow);
     w[0] += a * (s->x - w[0]);
     w[1] += a * (bladder - w[1]);
+    w[2] += a_slow * (bladder - w[2]);
   }
   double force = -(v[0] + v[1] * s->P / 1e6) * (s->x - w[0]);
   force += v[2] * (bladder - w[1]);
+  force += v[4] * (bladder - w[2]);
   return s->engaged ? force : 0.0;
 }
 
