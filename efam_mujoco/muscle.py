@@ -62,15 +62,21 @@ class MuscleError(ValueError):
     """Impossible muscle geometry or constants."""
 
 
+def _numbers(value, label: str, unit: str) -> np.ndarray:
+    """``value`` as an array of floats; a ValueError saying ``label`` must be numbers in ``unit``
+    for None, text, or anything else numpy cannot read as numbers."""
+    try:
+        if value is None or isinstance(value, (str, bytes)):
+            raise TypeError
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{label} must be numbers ({unit}), got {value!r}") from None
+
+
 def _fluid_pressures(pressure_Pa, where: str) -> np.ndarray:
     """``pressure_Pa`` as an array of gauge pressures a fluid can have (ValueError naming
     ``where`` otherwise: not numbers, NaN, inf, below vacuum or above :data:`MAX_GAUGE_PRESSURE_PA`)."""
-    try:
-        if pressure_Pa is None or isinstance(pressure_Pa, (str, bytes)):
-            raise TypeError
-        P = np.asarray(pressure_Pa, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: pressure_Pa must be numbers (Pa), got {pressure_Pa!r}") from None
+    P = _numbers(pressure_Pa, f"{where}: pressure_Pa", "Pa")
     bad = ~(np.isfinite(P) & (P >= -ATMOSPHERE_PA) & (P <= MAX_GAUGE_PRESSURE_PA))
     if bad.any():
         value = float(P.ravel()[int(np.argmax(bad.ravel()))])
@@ -85,12 +91,7 @@ def _lengths(length_m, what: str) -> np.ndarray:
     """``length_m`` as an array of lengths a muscle can have, finite and above 0 m (ValueError
     naming ``what``, the entry point and its argument, otherwise). One pass over the array: it
     guards public entry points only, the force itself takes any input (see :meth:`Muscle.tension`)."""
-    try:
-        if length_m is None or isinstance(length_m, (str, bytes)):
-            raise TypeError
-        L = np.asarray(length_m, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be numbers (m), got {length_m!r}") from None
+    L = _numbers(length_m, what, "m")
     # NaN fails L > 0 and inf fails L < inf: one reduction catches all three
     ok = (L > 0.0) & (L < math.inf)
     if not ok.all():
