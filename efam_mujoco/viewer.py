@@ -63,6 +63,8 @@ def check(path: str | Path) -> str:
     from .files import mujoco_warnings
 
     model = compile_model(path)
+    if ignored := config_beside_instance(path):
+        raise ValueError(f"{path}: {ignored[0]}")
     check_muscle_laws(path)
     muscles = actuator_muscles(model, muscles_in_file(path))
     if problems := control_range_problems(model, muscles):
@@ -196,6 +198,37 @@ def muscles_in_file(path: str | Path) -> dict[str, Muscle]:
             )
         except (KeyError, TypeError, ValueError, ArithmeticError):
             continue
+    return out
+
+
+def config_beside_instance(path: str | Path) -> list[str]:
+    """Actuators that name an efam.muscle ``instance`` and also carry ``<config>`` keys of their
+    own: MuJoCo compiles them with the instance's config and ignores the inline keys without a
+    word, so the muscle simulated is not the one written there."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(str(path)).getroot()
+    except (ET.ParseError, OSError):
+        return []
+    ours = {
+        instance.get("name")
+        for plugin in root.iter("plugin")
+        if plugin.get("plugin") == PLUGIN_NAME
+        for instance in plugin.iter("instance")
+    }
+    out = []
+    for actuators in root.iter("actuator"):
+        for k, plugin in enumerate(actuators.iter("plugin")):
+            keys = [c.get("key") for c in plugin.iter("config")]
+            if plugin.get("instance") in ours and keys:
+                label = plugin.get("name") or f"number {k}"
+                out.append(
+                    f"actuator '{label}' uses efam.muscle instance '{plugin.get('instance')}' and also has "
+                    f"config keys of its own ({', '.join(map(str, keys[:3]))}{', ...' if len(keys) > 3 else ''}), "
+                    "which MuJoCo ignores: put them on the instance, or drop instance= to configure the "
+                    "actuator alone"
+                )
     return out
 
 

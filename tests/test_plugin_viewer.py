@@ -119,6 +119,31 @@ def test_view_check_refuses_a_model_whose_muscles_cannot_be_what_it_says(tmp_pat
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
+def test_view_check_refuses_inline_config_beside_an_instance(tmp_path, capsys):
+    """An actuator naming an instance takes that instance's config; MuJoCo ignores keys written on
+    the actuator too (here a 0.5 m rest length on a 0.17 m tendon) and the check passed it."""
+    config = config_xml(load_muscle("FAM1"), "        ")
+    text = MODEL.format(config="").replace(
+        '<extension><plugin plugin="efam.muscle"/></extension>',
+        f'<extension><plugin plugin="efam.muscle"><instance name="fam1">\n{config}\n</instance></plugin></extension>',
+    )
+    text = text.replace(
+        '<plugin name="m2" plugin="efam.muscle" tendon="t2">',
+        '<plugin name="m2" instance="fam1" tendon="t2"><config key="rest_length_m" value="0.5"/>',
+    ).replace(
+        '<plugin name="m1" plugin="efam.muscle" tendon="t1"', '<plugin name="m1" instance="fam1" tendon="t1"'
+    )
+    path = tmp_path / "model.xml"
+    path.write_text(text)
+    assert main(["view", "--check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "actuator 'm2' uses efam.muscle instance 'fam1'" in err and "rest_length_m" in err, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    # the same model without the actuator's own keys is fine
+    path.write_text(text.replace('<config key="rest_length_m" value="0.5"/>', ""))
+    assert main(["view", "--check", str(path)]) == 0, capsys.readouterr().err
+
+
 def test_view_check_passes_the_shipped_arm_models(capsys):
     from pathlib import Path
 
