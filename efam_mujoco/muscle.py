@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .stress import StressLaw
-from .units import check_pressure_Pa
+from .units import as_floats, check_pressure_Pa
 
 #: Braid angle at which the blocked force changes sign (paper Sec. 1, Eq. 1): atan(1/sqrt(2)).
 NEUTRAL_BRAID_ANGLE_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
@@ -63,14 +63,12 @@ class MuscleError(ValueError):
 
 
 def _numbers(value, label: str, unit: str) -> np.ndarray:
-    """``value`` as an array of floats; a ValueError saying ``label`` must be numbers in ``unit``
-    for None, text, or anything else numpy cannot read as numbers."""
-    try:
-        if value is None or isinstance(value, (str, bytes)):
-            raise TypeError
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{label} must be numbers ({unit}), got {value!r}") from None
+    """``value`` as an array of floats (:func:`units.as_floats`); a ValueError saying ``label``
+    must be numbers in ``unit`` for None, text, or anything else numpy cannot read as numbers."""
+    array = as_floats(value)
+    if array is None:
+        raise ValueError(f"{label} must be numbers ({unit}), got {value!r}")
+    return array
 
 
 def _fluid_pressures(pressure_Pa, where: str) -> np.ndarray:

@@ -171,3 +171,17 @@ def as_float(value) -> float:
         return float(value)
     except (TypeError, ValueError, OverflowError):
         return math.nan
+
+
+def as_floats(value):
+    """``value`` as a numpy array of floats, None when it is not numbers (None, a text, or
+    anything numpy cannot read as numbers): the array twin of :func:`as_float`, for callers that
+    name the argument in their own message."""
+    import numpy as np
+
+    try:
+        if value is None or isinstance(value, (str, bytes)):
+            raise TypeError
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None

@@ -65,8 +65,9 @@ def check(path: str | Path) -> str:
     model = compile_model(path)
     if ignored := config_beside_instance(path):
         raise ValueError(f"{path}: {ignored[0]}")
-    check_muscle_laws(path)
-    muscles = actuator_muscles(model, muscles_in_file(path))
+    declared = muscles_in_file(path)
+    check_muscle_laws(path, declared)
+    muscles = actuator_muscles(model, declared)
     if problems := control_range_problems(model, muscles):
         raise ValueError(f"{path}: {problems[0]}")
     data = mujoco.MjData(model)
@@ -159,19 +160,26 @@ def _outside_lengths(model: mujoco.MjModel, data: mujoco.MjData, muscles: dict[i
     return ""
 
 
+def _mjcf_root(path: str | Path):
+    """The MJCF file's XML root element, None when it does not parse (the compiler, which runs
+    first, has then said why)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        return ET.parse(str(path)).getroot()
+    except (ET.ParseError, OSError):
+        return None
+
+
 def muscles_in_file(path: str | Path) -> dict[str, Muscle]:
     """The efam.muscle instances an MJCF file declares (``<extension><plugin plugin="efam.muscle">
     <instance name=...><config key= value=/>``, keyed by the instance's name, and ``<actuator>
     <plugin plugin="efam.muscle" name=...><config .../>``, keyed by the actuator's), as Python
     muscles (instances whose config does not read as numbers are left to the compiler's message)."""
-    import xml.etree.ElementTree as ET
-
     from .stress import LAWS, StressLaw
 
     out: dict[str, Muscle] = {}
-    try:
-        root = ET.parse(str(path)).getroot()
-    except (ET.ParseError, OSError):
+    if (root := _mjcf_root(path)) is None:
         return out
     declared = []  # (name, config): <extension> instances, and plugins written inside an actuator
     for plugin in root.iter("plugin"):
@@ -205,11 +213,7 @@ def config_beside_instance(path: str | Path) -> list[str]:
     """Actuators that name an efam.muscle ``instance`` and also carry ``<config>`` keys of their
     own: MuJoCo compiles them with the instance's config and ignores the inline keys without a
     word, so the muscle simulated is not the one written there."""
-    import xml.etree.ElementTree as ET
-
-    try:
-        root = ET.parse(str(path)).getroot()
-    except (ET.ParseError, OSError):
+    if (root := _mjcf_root(path)) is None:
         return []
     ours = {
         instance.get("name")
@@ -232,12 +236,13 @@ def config_beside_instance(path: str | Path) -> list[str]:
     return out
 
 
-def check_muscle_laws(path: str | Path) -> None:
-    """Every efam.muscle instance of the file gives a finite force at every admissible length
-    (the plugin would hand MuJoCo 0 where the law overflows, Python NaN): else an error."""
+def check_muscle_laws(path: str | Path, declared: dict[str, Muscle]) -> None:
+    """Every efam.muscle instance the file declares (``declared``: :func:`muscles_in_file`) gives
+    a finite force at every admissible length (the plugin would hand MuJoCo 0 where the law
+    overflows, Python NaN): else an error naming the file and the instance."""
     from .musclefile import check_finite_forces
 
-    for name, muscle in muscles_in_file(path).items():
+    for name, muscle in declared.items():
         check_finite_forces(muscle, f"{path}: efam.muscle instance '{name}'")
 
 

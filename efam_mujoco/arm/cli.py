@@ -16,6 +16,7 @@ import numpy as np
 from ..files import write_json_atomic, write_text_atomic
 from ..musclefile import load_muscle
 from ..progress import progress
+from ..units import as_floats
 from .builder import (
     MODELS_DIR,
     arm_xml,
@@ -71,12 +72,7 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
     finite numbers (x, y, z in N) is refused."""
     # checked before the MuJoCo work: (0, 0) ended in numpy's "could not be broadcast", a NaN in
     # scipy's "y0 must be finite", both from the continuum step after the arm was built and settled
-    try:
-        if isinstance(tip_force_N, (str, bytes)):
-            raise TypeError
-        force = np.asarray(tip_force_N, dtype=float)
-    except (TypeError, ValueError):
-        force = None
+    force = as_floats(tip_force_N)
     if force is None or force.shape != (3,) or not np.all(np.isfinite(force)):
         raise ValueError(
             f"equilibrium: tip_force_N must be 3 finite numbers (x, y, z in N, base frame), got {tip_force_N!r}"

@@ -296,9 +296,8 @@ def run(args) -> int:
         muscle = replace(muscle, tension_only=True)
         check_tension_only(muscle, f"--tension-only with --muscle {args.muscle}")
     recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
-    d = diagnose(
-        recordings, muscle, allow="all"
-    )  # read_for_fit ran the checks and said what --allow let through
+    # read_for_fit ran the plausibility checks and said what --allow let through
+    d = diagnose(recordings, muscle, allow="all")
     report = text(d)
     print(report, end="")
     outputs = OutputSet()

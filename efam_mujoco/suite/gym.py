@@ -93,9 +93,8 @@ class SuiteEnv(gymnasium.Env):
             raise RuntimeError(
                 "the episode has ended (truncated at its time limit): call reset() before step()"
             )
-        common.refuse_unreal_action(
-            action
-        )  # before the float cast: complex was cast with a warning, text parsed
+        # before the float cast: complex was cast with a warning, text parsed
+        common.refuse_unreal_action(action)
         action = np.asarray(action, dtype=np.float64)
         if action.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {action.shape}")
