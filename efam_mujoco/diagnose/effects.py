@@ -394,6 +394,13 @@ class Effect:
         not in :meth:`design`: fitted values simulated on other data keep their meaning."""
         return dict(shape)
 
+    def fit_basis(self, ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """How the fit solves for the linear values on ``ctx``, when not directly: (T, lo, hi),
+        the linear values being ``T @ k`` with ``lo <= k <= hi``. A physical law that bounds a
+        combination of the values (a thread that does not shorten under more load) is a box
+        on ``k``; None (the default): the values themselves, within their own bounds."""
+        return None
+
     def design(self, ctx: Context, shape: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         """(fixed force, columns): dF = fixed + columns @ linear values, both zero where the
         muscle is slack (except the sensor offset)."""
@@ -678,11 +685,30 @@ class BraidCompliance(Effect):
             signature="a static error growing with pressure, shaped like a braid-angle change",
         )
 
-    def _design(self, ctx, shape):
+    @staticmethod
+    def _hoop_load(ctx) -> np.ndarray:
         m = ctx.muscle
-        q = np.maximum(ctx.P - m.deadband_Pa, 0.0) / 1e6 * m.outer_radius(ctx.L) / m.rest_outer_radius_m
+        return np.maximum(ctx.P - m.deadband_Pa, 0.0) / 1e6 * m.outer_radius(ctx.L) / m.rest_outer_radius_m
+
+    def _design(self, ctx, shape):
+        q = self._hoop_load(ctx)
         d = ctx.dF_dB()
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([q * d, q * q * d]))
+
+    def fit_basis(self, ctx):
+        """A thread does not shorten under more load: its strain b1 q + b2 q^2 is fitted as
+        non-decreasing over the loads these data reach (0 <= q <= q_top). Written as
+        k_c (2u - u^2) + k_x u^2 with u = q / q_top, both k >= 0 (every non-decreasing quadratic
+        through zero on [0, q_top], and nothing else): b1 = 2 k_c / q_top, b2 = (k_x - k_c) / q_top^2.
+        Without it, a quadratic that falls with the load (b1 0, b2 -0.2: threads shortening as the
+        pressure rises) mimicked a pressure transducer's calibration error on the benchmark.
+        The upper bounds keep b1 and b2 inside their own ranges."""
+        q = self._hoop_load(ctx)[ctx.engaged]
+        top = float(q.max()) if q.size else 0.0
+        if top <= 1e-9:
+            return None  # no load above the dead band: the columns are empty anyway
+        T = np.array([[2.0 / top, 0.0], [-1.0 / top**2, 1.0 / top**2]])
+        return T, np.zeros(2), np.array([min(0.1 * top, 0.2 * top * top), 0.2 * top * top])
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the braid-stretch correction; see :class:`Effect.step`."""

@@ -167,18 +167,24 @@ class Engine:
         for effect, shape in zip(effects, shapes):
             f, C = effect.design(self.ctx, effect.settle(self.ctx, shape))
             fixed = fixed + f
+            basis = None if effect.per_recording else effect.fit_basis(self.ctx)
             if effect.per_recording:  # one amplitude per recording, keyed "<key>#<recording>"
-                params = [(effect.linear[0], f"{effect.linear[0].key}#{r}") for r in range(C.shape[1])]
+                params = [(effect.linear[0].lo, effect.linear[0].hi, f"{effect.linear[0].key}#{r}")
+                          for r in range(C.shape[1])]  # fmt: skip
+            elif basis is not None:  # solved for k (values = T @ k), keyed "~<j>"
+                T, klo, khi = basis
+                C = C @ T
+                params = [(klo[j], khi[j], f"~{j}") for j in range(T.shape[1])]
             else:
-                params = [(p, p.key) for p in effect.linear]
-            for j, (p, key) in enumerate(params):
+                params = [(p.lo, p.hi, p.key) for p in effect.linear]
+            for j, (p_lo, p_hi, key) in enumerate(params):
                 col = C[:, j][self.order]
                 scale = math.sqrt(float(np.mean(col**2)))
                 if scale < 1e-9:
                     continue  # not identifiable from these recordings (e.g. no motion)
                 cols.append(col / scale)
-                lo.append(p.lo * scale)
-                hi.append(p.hi * scale)
+                lo.append(p_lo * scale)
+                hi.append(p_hi * scale)
                 owner.append((effect.name, key, scale))
         C = np.column_stack(cols) if cols else np.zeros((self.n, 0))
         return fixed[self.order], C, np.array(lo), np.array(hi), owner
@@ -323,6 +329,7 @@ class Engine:
             values[effect.name] = unseen | effect.settle(self.ctx, shape)
             identifiable[effect.name] = list(shape)
         per_recording: dict[tuple[str, str], dict[int, float]] = {}
+        in_basis: dict[str, dict[int, float]] = {}
         bounds = {(e.name, p.key): (p.lo, p.hi) for e in effects for p in e.linear}
 
         def held(name, key, value):  # the solver's bounds, less its last-digit rounding past them
@@ -330,12 +337,22 @@ class Engine:
             return float(min(max(value, lo), hi))
 
         for (name, key, scale), a in zip(owner, theta[k_model:]):
+            if key.startswith("~"):
+                in_basis.setdefault(name, {})[int(key[1:])] = a / scale
+                continue
             if "#" in key:
                 base, r = key.split("#")
                 per_recording.setdefault((name, base), {})[int(r)] = held(name, base, a / scale)
                 continue
             values[name][key] = held(name, key, a / scale)
             identifiable[name].append(key)
+        for effect in effects:  # values solved in a fit basis: T @ k (an unseen k is 0)
+            if effect.name in in_basis:
+                T = effect.fit_basis(self.ctx)[0]
+                k = np.array([in_basis[effect.name].get(j, 0.0) for j in range(T.shape[1])])
+                for p, a in zip(effect.linear, T @ k):
+                    values[effect.name][p.key] = held(effect.name, p.key, a)
+                    identifiable[effect.name].append(p.key)
         counts = np.diff(np.r_[self.ctx.starts, self.n])
         for (name, base), found in per_recording.items():
             by = [found.get(r, 0.0) for r in range(len(counts))]

@@ -38,7 +38,8 @@ viscoelasticity    ``maxwell2`` (two Maxwell branches in the bladder stresses), 
                    quasi-linear viscoelasticity: a continuous spectrum over two decades)
 pressure_lag       ``orifice`` (laminar-turbulent flow into a polytropic gas volume), ``delay``
                    (transport delay 20-150 ms then a first-order fill)
-drift              ``thermal`` (bladder modulus falling as t^gamma), ``creep`` (logarithmic
+drift              ``thermal`` (bladder modulus falling as (t / T)^gamma, T the duration of the
+                   case's first test: ``Case.rig``), ``creep`` (logarithmic
                    creep of the bladder's rest length under its pressure history)
 end_effects        ``tapered`` (tapered ends with pinned threads, force from -P dV/dL)
 braid_compliance   ``power`` (thread strain ~ (P R_o)^m, self-consistent), ``bilinear`` (crimp
@@ -112,6 +113,12 @@ class Case:
     protocol: str = ""
     sample_hz: float = 0.0
     units: list[str] = field(default_factory=list)
+    #: the rig's own scales, set by the case's first test and kept for any later test of it (a
+    #: next experiment): its top pressure (the transducer's range, the thread's and the
+    #: contact's load scale), its duration (the thermal drift's time scale) and the buckling
+    #: bump's strain. A later test with another top pressure, length or strain range is the
+    #: same muscle on the same rig: its physics must not move with the test
+    rig: dict = field(default_factory=dict)
     true_force_N: np.ndarray | None = field(default=None, repr=False)
     #: the length and the transducer's pressure as recorded, without the sensors' noise (scoring only)
     true_length_m: np.ndarray | None = field(default=None, repr=False)
@@ -388,7 +395,9 @@ def _iwan(s, delta_mean, spread, n=24, rng=None):
     return out
 
 
-def truth_tension(effect, form, rng, m, t, L, P, p_top, params) -> tuple[np.ndarray, np.ndarray]:
+def truth_tension(
+    effect, form, rng, m, t, L, P, p_top, params, rig: dict | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(extra tension, paper sign, this effect adds; the pressure the muscle sees)."""
     base = S._tension(m, P, L)
     if effect == "friction":
@@ -442,7 +451,7 @@ def truth_tension(effect, form, rng, m, t, L, P, p_top, params) -> tuple[np.ndar
     if effect == "drift":
         if form == "thermal":
             loss, gamma = rng.uniform(0.04, 0.15), rng.uniform(0.6, 1.6)
-            scale = 1.0 - loss * (t / t[-1]) ** gamma
+            scale = 1.0 - loss * (t / (rig or {}).get("duration_s", t[-1])) ** gamma
             params.update(modulus_loss=loss, gamma=gamma)
             return S._tension(m, P, L, scale_z=scale, scale_c=scale) - base, P
         c, t0 = rng.uniform(0.01, 0.04), rng.uniform(5.0, 60.0)
@@ -491,7 +500,8 @@ def truth_tension(effect, form, rng, m, t, L, P, p_top, params) -> tuple[np.ndar
         return np.full_like(t, -offset), P
     if effect == "strain_bump":
         x = L / m.rest_length_m - 1
-        x0 = float(np.percentile(x, rng.uniform(30, 70)))
+        here = float(np.percentile(x, rng.uniform(30, 70)))  # drawn every time: the stream replays
+        x0 = here if rig is None else rig.setdefault("bump_strain", here)
         w = rng.uniform(0.03, 0.1)
         A = rng.uniform(3.0, 10.0)
         params.update(bump_N=A, bump_strain=x0, bump_width=w)
@@ -555,23 +565,25 @@ def simulate(case: Case, plan: Plan, rng, force_noise_N: float | None = None) ->
     t, L = plan.t, plan.L
     params: dict = {}
     P_tr = regulator(t, plan.P_set, _volume(m, L), rng, params)
-    p_top = max(float(np.max(plan.P_set)), 100e3)
+    # the first test of the case sets the rig's scales (``Case.rig``)
+    p_top = case.rig.setdefault("p_top_Pa", max(float(np.max(plan.P_set)), 100e3))
+    case.rig.setdefault("duration_s", float(t[-1]))
     P_muscle = P_tr.copy()
     extra = np.zeros_like(t)
     # effects that change the pressure the muscle sees act first, then the rest add tension
     for effect, form in case.effects:
         sub: dict = {}
         if effect in ("sensor_nonlinearity", "gas_heating"):
-            _, error = truth_tension(effect, form, rng, m, t, L, P_tr, p_top, sub)
+            _, error = truth_tension(effect, form, rng, m, t, L, P_tr, p_top, sub, case.rig)
             P_muscle = np.maximum(P_muscle + error, 0.0)
         elif effect == "pressure_lag":
-            _, P_muscle = truth_tension(effect, form, rng, m, t, L, P_muscle, p_top, sub)
+            _, P_muscle = truth_tension(effect, form, rng, m, t, L, P_muscle, p_top, sub, case.rig)
         params[effect] = sub
     for effect, form in case.effects:
         if effect in ("sensor_nonlinearity", "gas_heating", "pressure_lag"):
             continue
         sub = {}
-        dT, _ = truth_tension(effect, form, rng, m, t, L, P_muscle, p_top, sub)
+        dT, _ = truth_tension(effect, form, rng, m, t, L, P_muscle, p_top, sub, case.rig)
         extra += dT
         params[effect] = sub
     clean = S._tension(m, P_tr, L)
