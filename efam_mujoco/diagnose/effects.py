@@ -686,12 +686,13 @@ class BraidCompliance(Effect):
         )
 
     @staticmethod
-    def _hoop_load(ctx) -> np.ndarray:
-        m = ctx.muscle
-        return np.maximum(ctx.P - m.deadband_Pa, 0.0) / 1e6 * m.outer_radius(ctx.L) / m.rest_outer_radius_m
+    def hoop_load(muscle: Muscle, P, L):
+        """The threads' load q in MPa: gauge pressure above the dead band times the sleeve radius
+        over its resting radius (one formula for the fit's columns and the replay's samples)."""
+        return np.maximum(P - muscle.deadband_Pa, 0.0) / 1e6 * muscle.outer_radius(L) / muscle.rest_outer_radius_m
 
     def _design(self, ctx, shape):
-        q = self._hoop_load(ctx)
+        q = self.hoop_load(ctx.muscle, ctx.P, ctx.L)
         d = ctx.dF_dB()
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([q * d, q * q * d]))
 
@@ -703,7 +704,11 @@ class BraidCompliance(Effect):
         Without it, a quadratic that falls with the load (b1 0, b2 -0.2: threads shortening as the
         pressure rises) mimicked a pressure transducer's calibration error on the benchmark.
         The upper bounds keep b1 and b2 inside their own ranges."""
-        q = self._hoop_load(ctx)[ctx.engaged]
+        return ctx.cached("braid_compliance.fit_basis", lambda: self._monotone_basis(ctx))
+
+    def _monotone_basis(self, ctx):
+        """:meth:`fit_basis` computed (the fit reads it twice: to build and to read back)."""
+        q = self.hoop_load(ctx.muscle, ctx.P, ctx.L)[ctx.engaged]
         top = float(q.max()) if q.size else 0.0
         if top <= 1e-9:
             return None  # no load above the dead band: the columns are empty anyway
@@ -713,7 +718,7 @@ class BraidCompliance(Effect):
     def step(self, v, state, s: Sample) -> float:
         """One sample of the braid-stretch correction; see :class:`Effect.step`."""
         m = s.muscle
-        q = max(s.P - m.deadband_Pa, 0.0) / 1e6 * float(m.outer_radius(s.L)) / m.rest_outer_radius_m
+        q = float(self.hoop_load(m, s.P, s.L))
         h = 1e-6
         slope = -(tension_with_thread(m, s.P, s.L, 1 + h) - tension_with_thread(m, s.P, s.L, 1 - h)) / (2 * h)
         force = (v["b1_per_MPa"] * q + v["b2_per_MPa2"] * q * q) * float(slope)
