@@ -58,6 +58,10 @@ class MuscleFileError(ValueError):
     """A muscle file that cannot be read; the message names the file and the key."""
 
 
+#: The pressure at which a law's pressure-stiffened modulus E1 + E2 P is checked against the
+#: bladder's plausible range (1 MPa, the recordings' default rated pressure).
+STIFFENING_PRESSURE_PA = 1.0e6
+
 #: A muscle file is a few kB; anything above this is not one (and is not read into memory).
 MAX_FILE_BYTES = 4_000_000
 
@@ -334,6 +338,20 @@ def geometry_from_dict(g: dict, where: str) -> Geometry:
     return geometry
 
 
+def check_text(value: str, key: str, label: str, one_line: bool = True) -> None:
+    """Refuse a string holding a control character or half a surrogate pair (JSON's \\u0000,
+    \\ud800): it is not text, and breaks the XML models, reports and file names a name goes into.
+    A name is one line (it heads tables and names files); other text (``one_line`` False) may
+    hold tabs and line breaks. :class:`MuscleFileError` names ``label`` and ``key``."""
+    allowed = "" if one_line else "\t\n"
+    bad = next((ch for ch in value if unicodedata.category(ch) in ("Cc", "Cs") and ch not in allowed), None)
+    if bad is not None:
+        raise MuscleFileError(
+            f"{label}: key '{key}' holds the character U+{ord(bad):04X}, which is not text (a control "
+            "character or half a surrogate pair)"
+        )
+
+
 def _validate_top_level(doc: dict, label: str) -> None:
     for key in doc:
         base, unit = split_unit(key)
@@ -346,19 +364,7 @@ def _validate_top_level(doc: dict, label: str) -> None:
     for key in ("name", "description"):
         if key in doc and not isinstance(doc[key], str):
             raise MuscleFileError(f"{label}: key '{key}' must be a string, got {_json_type(doc[key])}")
-        # a control character or half a surrogate pair (JSON's \u0000, \ud800) is not text: it
-        # breaks the XML models, reports and file names the name goes into
-        # a name is one line (it heads tables and names files); a description may have several
-        allowed = "" if key == "name" else "\t\n"
-        bad = next(
-            (ch for ch in doc.get(key, "") if unicodedata.category(ch) in ("Cc", "Cs") and ch not in allowed),
-            None,
-        )
-        if bad is not None:
-            raise MuscleFileError(
-                f"{label}: key '{key}' holds the character U+{ord(bad):04X}, which is not text (a control "
-                "character or half a surrogate pair)"
-            )
+        check_text(doc.get(key, ""), key, label, one_line=key == "name")
     if "notes" in doc and not (
         isinstance(doc["notes"], list) and all(isinstance(n, str) for n in doc["notes"])
     ):
@@ -597,6 +603,16 @@ def stress_from_document(doc: dict, label: str, law: str | None = None) -> Stres
             raise MuscleFileError(
                 f"{label}: stress law '{other}': coefficient 'E1_Pa' = {modulus:g} Pa cannot be physical for a "
                 f"bladder (its modulus lies in {low:g} .. {high:g} Pa: soft silicone to stiff rubber){hint}"
+            )
+        # the pressure stiffens the modulus to E1 + E2 P: at a megapascal (the recordings' default
+        # rated pressure) it must still be a rubber's, or every force at pressure is nonsense
+        stiffened = modulus + coefficients.get("E2", 0.0) * STIFFENING_PRESSURE_PA
+        if stiffened > high:
+            raise MuscleFileError(
+                f"{label}: stress law '{other}': coefficient 'E2' = {coefficients['E2']:g} cannot be physical for "
+                f"a bladder: its modulus E1 + E2 P would reach {stiffened:.3g} Pa at {STIFFENING_PRESSURE_PA / 1e3:g} "
+                f"kPa, above {high:g} Pa (stiff rubber); E2 is dimensionless (Pa of modulus per Pa of pressure, "
+                "about 0 .. 20)"
             )
     return StressLaw.from_dict(name, block["laws"][name], where=f"{label}: stress law '{name}'")
 

@@ -198,6 +198,23 @@ MAX_MAGNITUDE_SI = 1e9
 P_ATM_PA = 101325.0
 
 
+#: leading bytes of compressed archives a recording may be mistaken for (gzip, zip, bzip2, xz, zstd)
+COMPRESSED_MAGIC = {
+    b"\x1f\x8b": "gzip", b"PK\x03\x04": "zip", b"BZh": "bzip2", b"\xfd7zXZ\x00": "xz",
+    b"\x28\xb5\x2f\xfd": "zstd",
+}  # fmt: skip
+
+
+def _refuse_compressed(first_line: bytes, label: str) -> None:
+    """Refuse a file that starts like a compressed archive, naming the format (its bytes would
+    otherwise be judged as text: a stray CR read as old Mac line endings)."""
+    for magic, kind in COMPRESSED_MAGIC.items():
+        if first_line.startswith(magic):
+            raise RecordingError(
+                f"{label}: a {kind}-compressed file, not a CSV text recording: decompress it first"
+            )
+
+
 def _decoded_lines(handle, label: str):
     """The file's lines as text: UTF-8 (a BOM at the start is dropped), each line bounded;
     an error names the line and the column of a bad byte."""
@@ -207,7 +224,22 @@ def _decoded_lines(handle, label: str):
         if not raw:
             return
         number += 1
+        if number == 1:
+            _refuse_compressed(raw, label)
+        nul = raw.find(b"\x00")
+        if nul >= 0:
+            raise RecordingError(
+                f"{label}: line {number}, column {nul + 1}: a NUL byte: not UTF-8 text (a binary file, or "
+                "UTF-16); save it as CSV text in UTF-8 or ASCII"
+            )
         if b"\r" in raw.rstrip(b"\r\n"):
+            try:  # a bare CR in bytes that are not text is a binary file, not a line ending
+                raw.decode("utf-8")
+            except UnicodeDecodeError as err:
+                raise RecordingError(
+                    f"{label}: line {number}, column {err.start + 1}: byte 0x{raw[err.start]:02x} is not "
+                    "UTF-8: a binary file, not a text recording (save it as CSV text in UTF-8 or ASCII)"
+                ) from None
             raise RecordingError(
                 f"{label}: line {number}: lines end in a bare carriage return (CR, old Mac line "
                 "endings); save the file with LF or CRLF line endings"
@@ -681,20 +713,6 @@ def check_plausibility(
         # lengths a unit or a column away from the muscle's: the forces' checks against the
         # model would compare with a model read at the wrong lengths, and only add noise
         lengths_wrong = False
-        tcol = _column(rec, "time")
-        interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
-        if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
-            # a unit is offered only when under it the interval is one a recorder makes
-            fits = unit_that_fits(interval, 0.01, tcol, TIME_UNITS, within=(MIN_INTERVAL_S, MAX_INTERVAL_S))
-            hint = f"; the numbers fit '{fits}'" if fits else ""
-            findings.append(Finding("time-unit", (
-                f"{src}: column '{tcol}': the median sample interval is {interval:.4g} s; a bench recorder "
-                f"samples every {MIN_INTERVAL_S:g} .. {MAX_INTERVAL_S:g} s{hint}"
-            )))  # fmt: skip
-        else:
-            odd = _slow_strokes(rec, rest, tcol) or _fast_strokes(rec, rest, tcol)
-            if odd:
-                findings.append(Finding("time-unit", f"{src}: {odd}"))
         # lengths: a unit mix-up first (then the other length checks would only repeat it)
         if not 0.1 < median_L / rest < 10:
             if split_unit(lcol)[0] == "displacement":
@@ -743,12 +761,39 @@ def check_plausibility(
                     f"muscle's resting length {rest:.4g} m (nearest {nearest:.4g} m away): {question}"
                 )))  # fmt: skip
                 lengths_wrong = True
+        tcol = _column(rec, "time")
+        interval = float(np.median(np.diff(rec.time_s))) if len(rec) > 1 else 0.0
+        if not MIN_INTERVAL_S <= interval <= MAX_INTERVAL_S:
+            # a unit is offered only when under it the interval is one a recorder makes
+            fits = unit_that_fits(interval, 0.01, tcol, TIME_UNITS, within=(MIN_INTERVAL_S, MAX_INTERVAL_S))
+            hint = f"; the numbers fit '{fits}'" if fits else ""
+            findings.append(Finding("time-unit", (
+                f"{src}: column '{tcol}': the median sample interval is {interval:.4g} s; a bench recorder "
+                f"samples every {MIN_INTERVAL_S:g} .. {MAX_INTERVAL_S:g} s{hint}"
+            )))  # fmt: skip
+        elif not lengths_wrong:  # strokes measured in lengths of another unit say nothing of the clock
+            odd = _slow_strokes(rec, rest, tcol) or _fast_strokes(rec, rest, tcol)
+            if odd:
+                findings.append(Finding("time-unit", f"{src}: {odd}"))
         # pressures
         top = float(np.max(P))
-        if top > rated_pressure_Pa:
-            i = int(np.argmax(P > rated_pressure_Pa))
-            fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE)
-            hint = f"; the numbers fit '{fits}'" if fits else ""
+        # pressures above the rating (another unit, or a spike): the forces' checks against the
+        # model would read the model at those pressures and blame a good load cell
+        pressures_wrong = top > rated_pressure_Pa
+        if pressures_wrong:
+            above = P > rated_pressure_Pa
+            i = int(np.argmax(above))
+            # a unit mix-up lifts most of the actuated samples; a few spikes in good data are not
+            # a unit, and a unit hint there would have the user corrupt a right column
+            actuated = max(np.count_nonzero(P > muscle.deadband_Pa), 1)
+            if np.count_nonzero(above) >= 0.5 * actuated:
+                fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE)
+                hint = f"; the numbers fit '{fits}'" if fits else ""
+            else:
+                hint = (
+                    f" ({np.count_nonzero(above)} of {len(P)} samples, the rest within it: spikes or "
+                    "corrupt rows?)"
+                )
             findings.append(Finding("pressure-range", (
                 f"{src}: {_line(rec, i)}, column '{pcol}': pressure {P[i] / 1e3:.4g} kPa is above the rated "
                 f"pressure {rated_pressure_Pa / 1e3:g} kPa{hint}"
@@ -792,7 +837,8 @@ def check_plausibility(
             )))  # fmt: skip
         expected = float(np.ptp(model)) if model.size else 0.0
         spread = float(np.ptp(F))
-        if not big.any() and not lengths_wrong:  # a force beyond the muscle's reach is 'force-range' already
+        model_ok = not (lengths_wrong or pressures_wrong)  # the model read where the muscle was
+        if not big.any() and model_ok:  # a force beyond the muscle's reach is 'force-range' already
             with np.errstate(all="ignore"):  # the same pressures at the resting length
                 blocked = np.asarray(free.push(Pc, np.full_like(Pc, rest)), dtype=float)
             scale = _force_scale(Fc, aligned, blocked)
@@ -808,8 +854,9 @@ def check_plausibility(
                 )))  # fmt: skip
         if (
             spread == 0.0
-            or len(np.unique(F[: min(len(F), 100000)])) <= 2
-            or (expected > 5.0 and spread < 0.02 * expected and not lengths_wrong)
+            # two or three distinct values say 'dead' only over a real recording: any two rows hold two
+            or (len(F) >= MIN_SAMPLES and len(np.unique(F[: min(len(F), 100000)])) <= 2)
+            or (expected > 5.0 and spread < 0.02 * expected and model_ok)
         ):
             fits = unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
             hint = f" (or the numbers fit '{fits}')" if fits and len(np.unique(F[:1000])) > 2 else ""
@@ -823,7 +870,7 @@ def check_plausibility(
             lowest >= ATMOSPHERE_PA - ABSOLUTE_SLACK_PA
             and expected > 5.0
             and model.size == len(Pc)
-            and not lengths_wrong
+            and model_ok
         ):
             with np.errstate(all="ignore"):
                 lowered = np.asarray(free.push(np.clip(Pc - ATMOSPHERE_PA, 0.0, None), Lc), dtype=float)
@@ -840,7 +887,7 @@ def check_plausibility(
         # 'pressure-range' says it) the forces fit the model far better read in another unit
         as_read, unit = (
             (0.0, None)
-            if lengths_wrong
+            if not model_ok
             else _pressure_unit_fit(free, Fc, Pc, Lc, aligned, pcol, rated_pressure_Pa)
         )
         if unit:
@@ -851,7 +898,7 @@ def check_plausibility(
             )))  # fmt: skip
         # the sign: where the model's push force rises, the recorded one must not fall
         both = np.isfinite(aligned)
-        if expected > 5.0 and spread > 0.0 and np.count_nonzero(both) > 10:
+        if model_ok and expected > 5.0 and spread > 0.0 and np.count_nonzero(both) > 10:
             with np.errstate(all="ignore"):
                 r = float(np.corrcoef(Fc[both], aligned[both])[0, 1])
             if r < -SIGN_CORRELATION:
@@ -1025,6 +1072,37 @@ def refuse_copies(recordings: list[Recording], names: list[str] | None = None, p
                 "twice, it would count twice)"
             )
         seen[key] = name
+    # a copy saved again is not the same floats: fewer digits, another unit (a displacement in
+    # mm), its clock shifted. Two recordings of one test still differ by their noise, far more
+    # than a re-export's rounding
+    for j in range(len(recordings)):
+        for i in range(j):
+            if _same_test(recordings[i], recordings[j]):
+                raise RecordingError(
+                    f"{prefix}{shown_path(names[j])}: the same samples as {shown_path(names[i])} to within "
+                    f"{COPY_TOLERANCE:.0e} of each column's range (a copy saved again, in other units or with "
+                    "its clock shifted: given twice, it would count twice)"
+                )
+
+
+#: two recordings whose every column agrees to this share of its range (the time from each
+#: one's start) are one test saved twice: six significant digits round to 5e-7 of a value
+COPY_TOLERANCE = 1e-4
+
+
+def _same_test(a: Recording, b: Recording) -> bool:
+    """Whether ``a`` and ``b`` hold the same samples up to a re-export (see :func:`refuse_copies`)."""
+    if len(a) != len(b) or len(a) < 2:
+        return False
+    pairs = (
+        (a.time_s - a.time_s[0], b.time_s - b.time_s[0]), (a.length_m, b.length_m),
+        (a.pressure_Pa, b.pressure_Pa), (a.force_N, b.force_N),
+    )  # fmt: skip
+    for x, y in pairs:
+        scale = max(float(np.ptp(x)), float(np.ptp(y)), 1e-12)
+        if float(np.max(np.abs(x - y))) > COPY_TOLERANCE * scale:
+            return False
+    return True
 
 
 def read_for_fit(args, muscle, warn=None) -> list[Recording]:

@@ -175,7 +175,10 @@ def run_muscle(args) -> int:
     muscle = load_muscle(args.muscle, args.stress)
     # a pressure flag under 1 kPa is said once, in kPa, by the command line, which then quiets
     # the Pa-level checks of the functions it feeds (cli._small_kilopascal_flags)
-    rows = compare(muscle, _pressures(args))
+    try:
+        rows = compare(muscle, _pressures(args))
+    except RuntimeError as err:  # the rig could not hold this muscle: name the file it came from
+        raise RuntimeError(f"{args.muscle}: {err}") from None
     doc = report_dict(muscle, rows)
     text = strict_json(doc)  # before printing: a non-finite value is an error, not a bad file
     print(format_report(muscle, rows))

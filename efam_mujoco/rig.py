@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .muscle import Muscle
+from .muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle
 from .plugin import actuator_dynamics, effect_pairs, effects_config, instance_xml
 from .plugin import load as load_plugin
 from .units import check_pressure_Pa, check_within
@@ -351,6 +351,21 @@ def check_control_range(pressures_Pa, options: RigOptions = RigOptions(), what: 
     check_within(pressures_Pa, options.min_pressure_Pa, options.max_pressure_Pa, what=what, unit="Pa")
 
 
+def _unsettled(muscle: Muscle, pressure_Pa: float, max_time_s: float) -> str:
+    """Why the rig's plate did not come to rest, naming the muscle and what in it to check."""
+    text = (
+        f"muscle '{muscle.name}': the rig did not settle within {max_time_s:g} s at {pressure_Pa / 1e3:g} kPa"
+    )
+    theta = muscle.theta_rest_deg
+    if not muscle.is_extensile:  # a geometry typed wrong turns an EFAM into a McKibben
+        text += (
+            f": its braid angle at rest is {theta:.1f} deg, above {NEUTRAL_BRAID_ANGLE_DEG:.2f} deg, so it "
+            "contracts under pressure; check its geometry (sleeve diameter and length, units), or mark a "
+            "contractile muscle tension_only"
+        )
+    return text
+
+
 def equilibrium_length(
     muscle: Muscle,
     pressure_Pa: float,
@@ -397,7 +412,7 @@ def equilibrium_length(
             previous_mid, mid, swing = mid, 0.5 * (low + high), high - low
         else:
             if not (swing < still_m and abs(mid - previous_mid) < still_m):
-                raise RuntimeError(f"rig did not settle within {max_time_s} s at {pressure_Pa:g} Pa")
+                raise RuntimeError(_unsettled(muscle, pressure_Pa, max_time_s))
     mujoco.mj_forward(model, data)
     return float(data.sensordata[length])
 

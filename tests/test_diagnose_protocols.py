@@ -387,6 +387,17 @@ def test_two_effects_are_ambiguous_only_when_the_paired_test_cannot_separate_the
     assert v.answer == "a" and not v.ambiguous and v.tentative and "tentative" in v.words()
 
 
+def test_a_term_ahead_of_the_library_but_mostly_doubted_is_reported_unresolved_first():
+    # an outside review read "Answer (tentative): drift (p = 0.15)" with 0.81 on 'unresolved'
+    rng = np.random.default_rng(2)
+    base = 1 + 0.1 * rng.random(40)
+    apart = {"none": base * 3, "drift": base, "viscoelasticity": base * 1.5}
+    v = verdict({"drift": 0.8, "viscoelasticity": 0.2}, excess_cut=0.05, dd_gain=0.0, n_blocks=40,
+                block_sse=apart, dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    assert v.tentative and v.answer == "drift" and v.probabilities["unresolved"] > v.probability
+    assert v.words().startswith("Unresolved (p = ") and "best library term is drift" in v.words()
+
+
 def test_a_pair_the_bootstrap_tells_apart_is_not_called_ambiguous():
     # the error one hypothesis removes sits in 3 of 40 blocks (a drift at the end of a test):
     # there the other is 25 x the noise, elsewhere both are at the noise (+-3 %). The per-block

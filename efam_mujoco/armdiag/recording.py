@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import os
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -99,6 +100,11 @@ MIN_REACH_SHARE = 0.3
 #: Commands that never reach this share of the model's highest pressure drive nothing (below
 #: any EFAM's dead band): MPa or bar written under a 'kPa' header (0.1-1 % of it).
 MIN_COMMAND_SHARE = 0.05
+#: One command column under :data:`MIN_COMMAND_SHARE` while others reach it is refused as written
+#: in another unit when that unit puts its largest command within this factor of the others':
+#: bar and MPa under 'kPa' are 100 x and 1000 x off, a muscle merely driven less than the others
+#: rarely within 3 x of them once scaled by such a factor.
+COLUMN_UNIT_FACTOR = 3.0
 #: A tip whose every coordinate spans less than this (m) while the commands change never moved:
 #: a motion tracker's noise alone spans tens of micrometres
 FROZEN_TIP_M = 1e-6
@@ -187,24 +193,9 @@ def _classify(name: str, muscles: list[str], label: str, line: int, column: int)
     )
 
 
-def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
-    """Read an arm recording (format in the module docstring) for an arm with ``muscles``.
-
-    The file is read by the muscle recordings' rules (``efam_mujoco.recordings``): UTF-8 with or
-    without a byte-order mark, no bare-CR line endings, '#' comment rows, commas only, plain
-    ASCII decimals (no ``1_000``, no decimal comma), magnitudes up to 1e9 in SI."""
-    path = Path(path)
-    label = shown_path(path)  # for messages; meta keeps the real name
-    try:
-        with open_recording(path, label) as handle:
-            rows = list(csv_rows(handle, label))
-        if rows:
-            refuse_other_separators(rows[0][2], label, rows[0][0], _ACCEPTED)
-    except RecordingError as err:
-        raise ArmRecordingError(str(err)) from None
-    if not rows:
-        raise ArmRecordingError(f"{label}: no header line")
-    head_line, _, header = rows[0]
+def _header_roles(header: list[str], muscles: list[str], label: str, head_line: int) -> list:
+    """(role, key, factor to SI) of each header cell; an error names the line and the column of an
+    empty, unknown or repeated column, or the columns that are missing."""
     roles = []
     seen = {}
     for c, raw in enumerate(header, 1):
@@ -225,43 +216,98 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         missing.insert(0, "time_s")
     if missing:
         raise ArmRecordingError(f"{label}: line {head_line}: missing column(s) {', '.join(missing)}")
-    n = len(rows) - 1
+    return roles
+
+
+def _parse_arm_row(row: list[str], line: int, last: int, header: list[str], roles: list, label: str) -> list:
+    """One data row's values in SI, column by column (NaN for an empty tip or extra cell: a marker
+    dropout); an error names the file, the line and the column."""
+    # an unclosed quote swallows the lines after it: said with the row it spoiled
+    runs_on = f" (a quote on line {line} runs on to line {last})" if last > line else ""
+    if len(row) != len(header):
+        raise ArmRecordingError(
+            f"{label}: line {line}: {len(row)} fields, the header has {len(header)}{runs_on}"
+        )
+    out = []
+    for c, (cell, (role, _key, scale)) in enumerate(zip(row, roles)):
+        cell = cell.strip()
+        where = f"{label}: line {line}, column {c + 1} ('{header[c].strip()}')"
+        if not cell:
+            if role in ("tip", "extra"):
+                out.append(math.nan)  # a marker dropout
+                continue
+            raise ArmRecordingError(f"{where}: empty value{runs_on}")
+        v, problem = decimal_cell(cell, scale)  # in SI
+        if v is None:
+            raise ArmRecordingError(f"{where}: {problem}{runs_on}")
+        if role in ("command", "measured") and v < 0:
+            raise ArmRecordingError(
+                f"{where}: negative gauge pressure {float(cell):g} (vacuum is not supported)"
+            )
+        out.append(v)
+    return out
+
+
+def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
+    """Read an arm recording (format in the module docstring) for an arm with ``muscles``.
+
+    The file is read by the muscle recordings' rules (``efam_mujoco.recordings``): UTF-8 with or
+    without a byte-order mark, no bare-CR line endings, '#' comment rows, commas only, plain
+    ASCII decimals (no ``1_000``, no decimal comma), magnitudes up to 1e9 in SI."""
+    path = Path(path)
+    label = shown_path(path)  # for messages; meta keeps the real name
+    header: list[str] | None = None
+    head_line = 0
+    roles: list = []
+    # streamed into one array('d') per column and the file line of each sample (about 8 bytes a
+    # column a row): a list of rows of strings took ~800 bytes a row, and a multi-GB log ran the
+    # machine out of memory before its duration was ever checked
+    columns: list[array] = []
+    lines = array("q")
+    n = 0
+    pending = None  # the first data row's problem: said once a second row shows there is a recording
+    try:
+        with open_recording(path, label) as handle:
+            for line, last, row in csv_rows(handle, label):
+                if header is None:
+                    refuse_other_separators(row, label, line, _ACCEPTED)
+                    header, head_line = row, line
+                    roles = _header_roles(header, muscles, label, head_line)
+                    columns = [array("d") for _ in header]
+                    continue
+                if pending is not None:
+                    raise pending
+                n += 1
+                try:
+                    parsed = _parse_arm_row(row, line, last, header, roles, label)
+                except ArmRecordingError as err:
+                    if n > 1:
+                        raise
+                    pending = err  # one data row only is "fewer than 2 data rows", as before
+                    continue
+                for store, v in zip(columns, parsed):
+                    store.append(v)
+                lines.append(line)
+    except RecordingError as err:
+        raise ArmRecordingError(str(err)) from None
+    if header is None:
+        raise ArmRecordingError(f"{label}: no header line")
     if n < 2:
         raise ArmRecordingError(f"{label}: fewer than 2 data rows")
-    values = np.full((n, len(header)), np.nan)
-    for r, (line, last, row) in enumerate(rows[1:]):
-        # an unclosed quote swallows the lines after it: said with the row it spoiled
-        runs_on = f" (a quote on line {line} runs on to line {last})" if last > line else ""
-        if len(row) != len(header):
-            raise ArmRecordingError(
-                f"{label}: line {line}: {len(row)} fields, the header has {len(header)}{runs_on}"
-            )
-        for c, (cell, (role, _key, scale)) in enumerate(zip(row, roles)):
-            cell = cell.strip()
-            where = f"{label}: line {line}, column {c + 1} ('{header[c].strip()}')"
-            if not cell:
-                if role in ("tip", "extra"):
-                    continue  # a marker dropout
-                raise ArmRecordingError(f"{where}: empty value{runs_on}")
-            v, problem = decimal_cell(cell, scale)  # in SI
-            if v is None:
-                raise ArmRecordingError(f"{where}: {problem}{runs_on}")
-            if role in ("command", "measured") and v < 0:
-                raise ArmRecordingError(
-                    f"{where}: negative gauge pressure {float(cell):g} (vacuum is not supported)"
-                )
-            values[r, c] = v
+    # views of the arrays, not copies: the recording's columns are only read from here on
+    values = [np.frombuffer(c, dtype=float) for c in columns]
+    line_of = np.frombuffer(lines, dtype=np.int64)
     col = {role[:2]: i for i, role in enumerate(roles)}
-    t = values[:, col["time", None]]
+    t = values[col["time", None]]
     time_name = header[col["time", None]].strip()
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
-        line = rows[1 + bad[0] + 1][0]
+        line = int(line_of[bad[0] + 1])
         raise ArmRecordingError(
             f"{label}: line {line}, column {col['time', None] + 1} ('{time_name}'): time not increasing"
         )
     _check_time_base(t, f"{label}: column {col['time', None] + 1} ('{time_name}')", time_name)
-    commands = np.column_stack([values[:, col["command", m]] for m in muscles])
+    commands = np.column_stack([values[col["command", m]] for m in muscles])
     if not np.any(commands):  # an unplugged logger channel or a wrong file: the arm only sags
         names = ", ".join(header[col["command", m]].strip() for m in muscles)
         raise ArmRecordingError(
@@ -270,17 +316,17 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         )
     measured = None
     if all(("measured", m) in col for m in muscles):
-        measured = np.column_stack([values[:, col["measured", m]] for m in muscles])
-    tip = np.column_stack([values[:, col["tip", a]] for a in _TIP_AXES])
+        measured = np.column_stack([values[col["measured", m]] for m in muscles])
+    tip = np.column_stack([values[col["tip", a]] for a in _TIP_AXES])
     tip[~np.all(np.isfinite(tip), axis=1)] = np.nan  # a partial marker row is a dropout
     if np.all(np.isnan(tip[:, 0])):
         raise ArmRecordingError(f"{label}: no row has a tip position")
-    extra = {key: values[:, i] for (role, key), i in col.items() if role == "extra"}
+    extra = {key: values[i] for (role, key), i in col.items() if role == "extra"}
     meta = {
         "source": str(path),
         "columns": [h.strip() for h in header],
         "dropouts": int(np.isnan(tip[:, 0]).sum()),
-        "lines": [line for line, _, _ in rows[1:]],  # the file line of each sample
+        "lines": line_of,  # the file line of each sample
         "time_column": time_name,
         "command_columns": [header[col["command", m]].strip() for m in muscles],
         "tip_columns": [header[col["tip", a]].strip() for a in _TIP_AXES],
@@ -324,6 +370,54 @@ def units_putting(number: float, low_Pa: float, high_Pa: float) -> list[str]:
     return [u for u in PRESSURE if low_Pa <= number * PRESSURE[u] <= high_Pa]
 
 
+def _check_small_columns(rec: ArmRecording, max_Pa: np.ndarray, columns: list[str], src: str) -> None:
+    """Refuse one muscle's command column written in a larger unit than its header's (bar or MPa
+    under 'kPa') while the other columns are right: the whole-recording test of
+    :data:`MIN_COMMAND_SHARE` only sees the largest command of all muscles.
+
+    A column is refused only when it looks like a unit mix-up, not a muscle little used: its
+    commands change (a column of 0 is an idle muscle, a constant one a held bias pressure), never
+    reach :data:`MIN_COMMAND_SHARE` of its model's highest pressure, and another pressure unit puts
+    its largest value within :data:`COLUMN_UNIT_FACTOR` of what the columns that do reach it
+    command (their median largest command)."""
+    tops = np.asarray(max_Pa, float)
+    highest = np.nanmax(rec.command_Pa, axis=0) if len(rec) else np.zeros(len(rec.muscles))
+    reaching = [
+        float(highest[j]) for j in range(len(rec.muscles)) if highest[j] >= MIN_COMMAND_SHARE * tops[j]
+    ]  # an unlimited actuator (top inf) never counts as reaching: nothing to compare it with
+    if not reaching:  # the whole-recording test's case (or no finite range): said there
+        return
+    usual = float(np.median(reaching))
+    for i, (m, name) in enumerate(zip(rec.muscles, columns)):
+        p, top = rec.command_Pa[:, i], float(tops[i])
+        if not math.isfinite(top) or not 0 < highest[i] < MIN_COMMAND_SHARE * top or np.ptp(p) == 0:
+            continue
+        base, unit = split_unit(name)
+        if unit not in PRESSURE:  # a column whose unit cannot be read back: no unit to offer
+            continue
+        shown = PRESSURE[unit]
+        # a decade or more off only (bar or MPa under 'kPa', kPa under 'Pa'): psi under 'kPa' is
+        # 6.9 x, as near as a muscle merely driven less than the others, and is left to the replay
+        # (diagnosis._check_command_unit)
+        fits = [
+            u
+            for u in units_putting(highest[i] / shown, MIN_COMMAND_SHARE * top, top)
+            if PRESSURE[u] >= 10 * shown
+        ]
+        if not fits:
+            continue
+        # the unit that puts the column's largest command nearest the other muscles' (in ratio)
+        best = min(fits, key=lambda u: abs(math.log(highest[i] / shown * PRESSURE[u] / usual)))
+        if not 1 / COLUMN_UNIT_FACTOR <= highest[i] / shown * PRESSURE[best] / usual <= COLUMN_UNIT_FACTOR:
+            continue
+        raise ArmRecordingError(
+            f"{src}: column '{name}': muscle {m}'s largest command is {highest[i] / shown:g} {unit}, under "
+            f"{MIN_COMMAND_SHARE:.0%} of the model's highest pressure {top / shown:g} {unit}, while the other "
+            f"muscles' commands reach {usual / shown:g} {unit}: below any EFAM's dead band, this muscle never "
+            f"moves; was it {best}? the numbers fit '{base}_{best}'"
+        )
+
+
 def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m: float) -> list[str]:
     """Check a recording against its arm model before any replay.
 
@@ -333,7 +427,9 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
     naming the column, the first line and the unit that fits) commands above
     :data:`COMMAND_REFUSE_FACTOR` x the highest pressure and tips farther from the base than
     :data:`REACH_FACTOR` x the rest reach (a value that overflows counts as far), and tips that
-    stay within :data:`MIN_REACH_SHARE` x the rest reach of the base (median). Returns one message
+    stay within :data:`MIN_REACH_SHARE` x the rest reach of the base (median); commands that never
+    reach :data:`MIN_COMMAND_SHARE` of the highest pressure, of all muscles together or of one
+    muscle whose column reads as another unit (:func:`_check_small_columns`). Returns one message
     per column with commands a little above the highest pressure (replayed at it: the caller
     warns, never silent)."""
     src = shown_path(rec.meta.get("source", "recording"))
@@ -387,6 +483,7 @@ def check_against_model(rec: ArmRecording, max_command_Pa, base_m, rest_reach_m:
                 f"{MIN_COMMAND_SHARE:.0%} of the model's highest pressure {top / shown:g} {unit}: below any "
                 f"EFAM's dead band, the arm never moves" + hint
             )
+    _check_small_columns(rec, max_Pa, columns, src)
     # a test the arm cannot follow (checked here, not by the reader: a few rows are a file)
     duration = float(rec.time_s[-1] - rec.time_s[0]) if len(rec) else 0.0
     if duration < MIN_DURATION_S:

@@ -30,7 +30,7 @@ import numpy as np
 from .. import plugin
 from ..arm import ArmSpec, SectionSpec, build_spec
 from ..files import write_json_atomic
-from ..musclefile import MuscleFileError, load_muscle, muscle_document, muscle_from_document
+from ..musclefile import MuscleFileError, check_text, load_muscle, muscle_document, muscle_from_document
 
 FORMAT = "efam_mujoco.arm_spec/1"
 _SECTION_KEYS = ("radius_m", "angles_deg", "disks", "end_mass_kg", "body_mass_kg", "plate_mass_kg")
@@ -84,6 +84,15 @@ def _json_types(values: dict, cls, where: str) -> None:
             raise ArmModelError(f"{where}: key '{key}' must be {want}, got {json.dumps(value)}")
 
 
+def _shown_value(value) -> str:
+    """``value`` as JSON for a message, cut short (a long list would fill the screen)."""
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):  # a Python caller's object: not JSON at all
+        text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
     """The :class:`ArmSpec` of a dict written by :func:`spec_to_dict` (clear errors naming the key)."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
@@ -93,6 +102,13 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
     if unknown:
         raise ArmModelError(f"{label}: unknown key(s) {', '.join(unknown)}")
     _json_types({k: doc[k] for k in known - {"sections"} if k in doc}, ArmSpec, label)
+    if isinstance(doc.get("name"), str):
+        # the name becomes the MJCF's model="..."; a control character or half a surrogate pair
+        # there makes the XML ill-formed, so the muscle file's rule for its 'name' applies (one rule)
+        try:
+            check_text(doc["name"], "name", label)
+        except MuscleFileError as err:
+            raise ArmModelError(str(err)) from None
     sections = doc.get("sections")
     if not isinstance(sections, list) or not sections:
         raise ArmModelError(f"{label}: key 'sections' must be a non-empty list")
@@ -106,6 +122,11 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
             raise ArmModelError(f"{where}: unknown key(s) {', '.join(bad)}")
         muscles = []
         for i, m in enumerate(s["muscles"]):
+            if not isinstance(m, (str, dict)):  # a list, null, a boolean or a number is none of the three
+                raise ArmModelError(
+                    f"{where}.muscles[{i}]: must be a preset name, a muscle-file path or a muscle document "
+                    f"(a JSON object), got {_shown_value(m)}"
+                )
             try:
                 muscles.append(
                     load_muscle(m) if isinstance(m, str) else muscle_from_document(m, f"{where}.muscles[{i}]")
@@ -165,7 +186,14 @@ def load_arm_model(path: str | Path) -> mujoco.MjSpec:
     plugin.load()
     path = Path(path)
     if path.suffix.lower() == ".json":
-        spec = build_spec(load_spec(path))
+        arm = load_spec(path)
+        try:
+            spec = build_spec(arm)
+        except ValueError as err:  # the builder's own refusal ("arm: timestep_s = 4 ms is unstable"):
+            # said with the spec file it came from, which the builder never saw
+            text = str(err)
+            text = text[len("arm: ") :] if text.startswith("arm: ") else text
+            raise ArmModelError(text if text.startswith(f"{path}:") else f"{path}: {text}") from None
     else:
         try:
             spec = mujoco.MjSpec.from_file(str(path))

@@ -386,6 +386,15 @@ class Verdict:
             )
         if self.confident:
             return f"Answer: {self.answer} (p = {self.probability:.2f}). Probabilities: {spread}."
+        doubt = self.probabilities.get(UNRESOLVED, 0.0)
+        if self.tentative and doubt > self.probability:
+            # the best library term is ahead of the rest of the library, but most of the
+            # probability is the maps' doubt about any name: say that first, not "tentative X"
+            return (
+                f"Unresolved (p = {doubt:.2f}): no library term is believed, and these data do not support "
+                f"anything outside the library either; the best library term is {self.answer} "
+                f"(p = {self.probability:.2f}). Probabilities: {spread}."
+            )
         if self.tentative:
             return (
                 f"Answer (tentative): {self.answer} (p = {self.probability:.2f}); the data separate it from "

@@ -689,7 +689,12 @@ class BraidCompliance(Effect):
     def hoop_load(muscle: Muscle, P, L):
         """The threads' load q in MPa: gauge pressure above the dead band times the sleeve radius
         over its resting radius (one formula for the fit's columns and the replay's samples)."""
-        return np.maximum(P - muscle.deadband_Pa, 0.0) / 1e6 * muscle.outer_radius(L) / muscle.rest_outer_radius_m
+        return (
+            np.maximum(P - muscle.deadband_Pa, 0.0)
+            / 1e6
+            * muscle.outer_radius(L)
+            / muscle.rest_outer_radius_m
+        )
 
     def _design(self, ctx, shape):
         q = self.hoop_load(ctx.muscle, ctx.P, ctx.L)

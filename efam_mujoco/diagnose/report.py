@@ -21,6 +21,15 @@ def text(d: Diagnosis) -> str:
         f"{m.bladder_volume_m3 * 1e6:.3f} cm^3"
     )
     out.append("  in-sample RMS per law: " + ", ".join(f"{k} {v:.2f} N" for k, v in d.refit.by_law.items()))
+    shift = d.refit_shift()
+    if shift:
+        out.append(
+            f"  moved from the muscle given: braid angle {shift['theta_rest_deg']:+.3f} deg, dead band "
+            f"{shift['deadband_kPa']:+.2f} kPa, resting diameter {shift['rest_diameter_pct']:+.2f} %, bladder volume "
+            f"{shift['bladder_volume_pct']:+.2f} %"
+        )
+    if d.refit_caution():
+        out.append(f"  CAUTION: {d.refit_caution()}")
     if d.structure:
         out.append(f"Test structure (read from the data): {d.structure}")
     out.append("")

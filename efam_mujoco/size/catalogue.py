@@ -58,6 +58,12 @@ RANGES = {
     # Euler's effective-length factor: 0.5 (both ends fixed) .. 2 (one end free)
     "euler_length_factor": (0.5, 2.0, False),
 }
+#: A sleeve's reference diameter (D_45) lies in its diameter range: the braid passes through 45 deg
+#: as it opens from ``min_diameter`` to ``max_diameter``. It may lie this factor outside, as the
+#: range is a maker's listing or what a paper evidences and D_45 a convention (the paper's Kevlar
+#: sleeve: D_45 1.905 cm by the project's convention, drawn tight on 2.22 cm, 0.86 x its range's
+#: low end); a length-unit mix-up moves it by 2.54 x (in/cm) or more, beyond this factor.
+REFERENCE_DIAMETER_SLACK = 1.25
 #: How a quantity is shown in messages: (unit, factor from SI).
 _SHOW = {"length": ("mm", 1e3), "pressure": ("kPa", 1e-3), "density": ("kg/m^3", 1.0), "": ("", 1.0)}
 
@@ -283,6 +289,17 @@ def _sleeve(entry: dict, where: str) -> Sleeve:
     )
     if not sleeve.min_diameter_m <= sleeve.max_diameter_m:
         raise CatalogueError(f"{where}: min_diameter is above max_diameter")
+    low = sleeve.min_diameter_m / REFERENCE_DIAMETER_SLACK
+    high = sleeve.max_diameter_m * REFERENCE_DIAMETER_SLACK
+    if not low <= sleeve.reference_diameter_m <= high:
+        keys = [next((k for k in entry if split_unit(k)[0] == base), base)
+                for base in ("reference_diameter", "min_diameter", "max_diameter")]  # fmt: skip
+        raise CatalogueError(
+            f"{where}: key '{keys[0]}' = {entry.get(keys[0])!r} ({sleeve.reference_diameter_m * 1e3:g} mm) lies "
+            f"outside the sleeve's diameter range '{keys[1]}' .. '{keys[2]}' ({sleeve.min_diameter_m * 1e3:g} .. "
+            f"{sleeve.max_diameter_m * 1e3:g} mm, give or take {REFERENCE_DIAMETER_SLACK:g} x): the sleeve "
+            "passes through its reference diameter as it opens, so it lies in that range (another unit?)"
+        )
     return sleeve
 
 
