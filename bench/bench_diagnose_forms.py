@@ -254,20 +254,32 @@ def _iso_lengths(rng, fl, pmax):
     return fl.Lr + fr * span
 
 
-def proto_isometric_ramps(rng, fs, fl, pmax):
-    """Isometric pressure triangles at 3-4 lengths in random order."""
-    Ls = _iso_lengths(rng, fl, pmax)
-    period = rng.uniform(8, 20)
+def _isometric_start(fs, fl, pmax):
+    """2 s vented at rest, then a 2.5 s ramp to the top pressure there: the start of both isometric tests."""
     P, L = [np.zeros(int(2 * fs))], [np.full(int(2 * fs), fl.Lr)]
     n = int(2.5 * fs)
     P.append(np.linspace(0, pmax, n))
     L.append(np.full(n, fl.Lr))
+    return P, L
+
+
+def _move_at_top(P, L, Lprev, Lk, fs, fl, pmax):
+    """Append a 2 s move from ``Lprev`` to ``Lk`` at the top pressure; return the lowest pressure
+    of the isometric test there (the muscle stays just engaged at that length)."""
+    n = int(2 * fs)
+    P.append(np.full(n, pmax))
+    L.append(smoothstep_join(Lprev, Lk, n))
+    return min(fl.p_for(Lk + 0.003) * 1.05, 0.6 * pmax) if Lk > fl.Lr + 1e-4 else 0.0
+
+
+def proto_isometric_ramps(rng, fs, fl, pmax):
+    """Isometric pressure triangles at 3-4 lengths in random order."""
+    Ls = _iso_lengths(rng, fl, pmax)
+    period = rng.uniform(8, 20)
+    P, L = _isometric_start(fs, fl, pmax)
     Lprev = fl.Lr
     for Lk in Ls:
-        n = int(2 * fs)
-        P.append(np.full(n, pmax))
-        L.append(smoothstep_join(Lprev, Lk, n))
-        plo = min(fl.p_for(Lk + 0.003) * 1.05, 0.6 * pmax) if Lk > fl.Lr + 1e-4 else 0.0
+        plo = _move_at_top(P, L, Lprev, Lk, fs, fl, pmax)
         ncyc = 2
         t = np.arange(int(ncyc * period * fs)) / fs
         p = pmax - (pmax - plo) * tri(t / period)
@@ -282,16 +294,10 @@ def proto_isometric_steps(rng, fs, fl, pmax):
     """Isometric pressure staircases (valve steps, holds) at 3-4 lengths in random order."""
     Ls = _iso_lengths(rng, fl, pmax)
     hold = rng.uniform(3, 6)
-    P, L = [np.zeros(int(2 * fs))], [np.full(int(2 * fs), fl.Lr)]
-    n = int(2.5 * fs)
-    P.append(np.linspace(0, pmax, n))
-    L.append(np.full(n, fl.Lr))
+    P, L = _isometric_start(fs, fl, pmax)
     Lprev = fl.Lr
     for Lk in Ls:
-        n = int(2 * fs)
-        P.append(np.full(n, pmax))
-        L.append(smoothstep_join(Lprev, Lk, n))
-        plo = min(fl.p_for(Lk + 0.003) * 1.05, 0.6 * pmax) if Lk > fl.Lr + 1e-4 else 0.0
+        plo = _move_at_top(P, L, Lprev, Lk, fs, fl, pmax)
         steps = np.linspace(plo, pmax, 5)
         seq = list(steps[::-1][1:]) + list(steps[1:])
         for v in seq:  # valve steps: 50 ms transitions
