@@ -233,13 +233,7 @@ def _decoded_lines(handle, label: str):
                 "UTF-16); save it as CSV text in UTF-8 or ASCII"
             )
         if b"\r" in raw.rstrip(b"\r\n"):
-            try:  # a bare CR in bytes that are not text is a binary file, not a line ending
-                raw.decode("utf-8")
-            except UnicodeDecodeError as err:
-                raise RecordingError(
-                    f"{label}: line {number}, column {err.start + 1}: byte 0x{raw[err.start]:02x} is not "
-                    "UTF-8: a binary file, not a text recording (save it as CSV text in UTF-8 or ASCII)"
-                ) from None
+            _utf8(raw, number, label)  # a bare CR in bytes that are not text is no line ending
             raise RecordingError(
                 f"{label}: line {number}: lines end in a bare carriage return (CR, old Mac line "
                 "endings); save the file with LF or CRLF line endings"
@@ -250,13 +244,18 @@ def _decoded_lines(handle, label: str):
             )
         if number == 1 and raw.startswith(b"\xef\xbb\xbf"):
             raw = raw[3:]
-        try:
-            yield raw.decode("utf-8")
-        except UnicodeDecodeError as err:
-            raise RecordingError(
-                f"{label}: line {number}, column {err.start + 1}: byte 0x{raw[err.start]:02x} is not "
-                "UTF-8 (save the file as UTF-8 or ASCII)"
-            ) from None
+        yield _utf8(raw, number, label)
+
+
+def _utf8(raw: bytes, number: int, label: str) -> str:
+    """Line ``number`` decoded as UTF-8, or the error naming its column and the byte."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise RecordingError(
+            f"{label}: line {number}, column {err.start + 1}: byte 0x{raw[err.start]:02x} is not "
+            "UTF-8 (save the file as UTF-8 or ASCII)"
+        ) from None
 
 
 def open_recording(path: Path, label: str):
@@ -782,18 +781,15 @@ def check_plausibility(
         pressures_wrong = top > rated_pressure_Pa
         if pressures_wrong:
             above = P > rated_pressure_Pa
-            i = int(np.argmax(above))
+            i, n_above = int(np.argmax(above)), int(np.count_nonzero(above))
             # a unit mix-up lifts most of the actuated samples; a few spikes in good data are not
             # a unit, and a unit hint there would have the user corrupt a right column
             actuated = max(np.count_nonzero(P > muscle.deadband_Pa), 1)
-            if np.count_nonzero(above) >= 0.5 * actuated:
+            if n_above >= 0.5 * actuated:
                 fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE)
                 hint = f"; the numbers fit '{fits}'" if fits else ""
             else:
-                hint = (
-                    f" ({np.count_nonzero(above)} of {len(P)} samples, the rest within it: spikes or "
-                    "corrupt rows?)"
-                )
+                hint = f" ({n_above} of {len(P)} samples, the rest within it: spikes or corrupt rows?)"
             findings.append(Finding("pressure-range", (
                 f"{src}: {_line(rec, i)}, column '{pcol}': pressure {P[i] / 1e3:.4g} kPa is above the rated "
                 f"pressure {rated_pressure_Pa / 1e3:g} kPa{hint}"

@@ -28,8 +28,9 @@ def text(d: Diagnosis) -> str:
             f"{shift['deadband_kPa']:+.2f} kPa, resting diameter {shift['rest_diameter_pct']:+.2f} %, bladder volume "
             f"{shift['bladder_volume_pct']:+.2f} %"
         )
-    if d.refit_caution():
-        out.append(f"  CAUTION: {d.refit_caution()}")
+    caution = d.refit_caution()
+    if caution:
+        out.append(f"  CAUTION: {caution}")
     if d.structure:
         out.append(f"Test structure (read from the data): {d.structure}")
     out.append("")
