@@ -38,9 +38,13 @@ from efam_mujoco.diagnose import virtual_bench as V  # noqa: E402
 from efam_mujoco.files import write_json_atomic  # noqa: E402
 from efam_mujoco.musclefile import load_muscle  # noqa: E402
 from efam_mujoco.progress import progress  # noqa: E402
+from efam_mujoco.recordings import PlausibilityError  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_diagnose import correct, pin_one_core  # noqa: E402
+
+#: the answer of a recording the diagnosis's input checks refused
+REFUSED = "refused"
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results" / "diagnose_protocols.json"
@@ -240,7 +244,16 @@ def run_case(spec: tuple[int, str, str]) -> dict:
         else (True, 0.0)
     )
     start = time.perf_counter()
-    d = diagnose([recording], nominal, next_experiment=False)
+    try:
+        d = diagnose([recording], nominal, next_experiment=False)
+    except PlausibilityError as refused:
+        # a truthful recording the input checks refuse is a result of the run, not its end
+        return {
+            "seed": seed, "protocol": name, "kind": kind, "truth": case.names, "forms": [f for _, f in case.effects],
+            "shows": shows, "truth_left_after_refit_N": left, "answer": REFUSED, "probability": 0.0,
+            "confident": False, "ambiguous": False, "contenders": [], "correct": False,
+            "samples": len(recording.time_s), "refusal": str(refused), "seconds": time.perf_counter() - start,
+        }  # fmt: skip
     v = d.verdict
     return {
         "seed": seed, "protocol": name, "kind": kind, "truth": case.names, "forms": [f for _, f in case.effects],
@@ -262,7 +275,8 @@ def summarise(rows: list[dict]) -> dict:
         sure = [r for r in shown if r["confident"]]
         out[name] = {
             "clean": len(clean),
-            "false_alarms": sum(r["answer"] != "none" for r in clean),
+            "refused": sum(r["answer"] == REFUSED for r in mine),
+            "false_alarms": sum(r["answer"] not in ("none", REFUSED) for r in clean),
             "false_alarms_confident": sum(r["answer"] != "none" and r["confident"] for r in clean),
             "single_showing": len(shown),
             "confident": len(sure),
@@ -304,10 +318,11 @@ def main(argv=None) -> int:
     rows.sort(key=lambda r: r["seed"])
     summary = summarise(rows)
     print(
-        f"\n{'protocol':18s} {'clean':>5s} {'alarms':>6s} {'(conf)':>6s} {'shows':>5s} {'conf':>4s} {'right':>5s}"
+        f"\n{'protocol':18s} {'clean':>5s} {'alarms':>6s} {'(conf)':>6s} {'refused':>7s} {'shows':>5s} {'conf':>4s} "
+        f"{'right':>5s}"
     )
     for name, s in summary.items():
-        print(f"{name:18s} {s['clean']:5d} {s['false_alarms']:6d} {s['false_alarms_confident']:6d} "
+        print(f"{name:18s} {s['clean']:5d} {s['false_alarms']:6d} {s['false_alarms_confident']:6d} {s['refused']:7d} "
               f"{s['single_showing']:5d} {s['confident']:4d} {s['right_among_confident']:5d}  "
               f"{'; '.join(s['confident_wrong'])}")  # fmt: skip
     out = {

@@ -5,6 +5,7 @@ independently of the library, in other functional forms)."""
 
 import dataclasses
 import math
+import re
 
 import mujoco
 import numpy as np
@@ -491,13 +492,13 @@ def test_the_calibration_cases_have_the_benchmarks_mix():
     assert not {seed for seed, _, _ in bench.plan(76, 100000)} & set(seeds)
 
 
-def _bench():
-    """``bench/bench_diagnose.py`` as a module (the bench is a script, not part of the package)."""
+def _bench(script: str = "bench_diagnose"):
+    """``bench/<script>.py`` as a module (the benches are scripts, not part of the package)."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "bench" / "bench_diagnose.py"
-    spec = importlib.util.spec_from_file_location("bench_diagnose_for_test", path)
+    path = Path(__file__).resolve().parents[1] / "bench" / f"{script}.py"
+    spec = importlib.util.spec_from_file_location(f"{script}_for_test", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     return bench
@@ -786,6 +787,37 @@ def test_a_drift_is_named_on_its_own_clock_and_course(seed, family, clock, cours
     # the warm-up is named drift with the runner-up told apart, but not at p >= 0.8 since the
     # viscoelasticity's slow bladder branch (20 tau, up to 1000 s) takes part of a slow change
     # too (p 0.41): a trade the 115000 benchmark run measured (docs/diagnosis.md)
+
+
+@pytest.mark.parametrize(
+    "case_id, variant",
+    [
+        # a known miss: long holds where the viscoelasticity's slow branch predicts the held-out
+        # blocks better than the drift (1.59 N against 1.94 N) and is named at p 0.83
+        pytest.param("d02", 0, marks=pytest.mark.xfail(strict=True, reason="still viscoelasticity 0.83")),
+        ("d03", 0),
+        ("d02", 1),
+        ("d03", 1),
+    ],
+)
+def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_of_its_own_time_constant(case_id, variant):
+    # the outside reviewer's warm-up (bench/bench_diagnose_forms.py, written without reading the
+    # library): F + A (1 - exp(-t / T)), T 15-40 s. With the drift's time constant held at 30 s or
+    # more, three of these four were answered viscoelasticity at p 0.83-0.90, its slow branch
+    # standing in for the warm-up (d03 on both seed sets); with a floor of 10 s, d03 is answered
+    # drift 0.94 on the main set and the replica's is no longer confident
+    forms = _bench("bench_diagnose_forms")
+    k, spec = next((k, s) for k, s in enumerate(forms.plan()) if s["id"] == case_id)
+    entry, recording, _ = forms.generate_one(
+        spec, forms.SEED0 + k * forms.SEED_STEP + variant * forms.SEED_VARIANT
+    )
+    truth_tau = float(re.search(r"warm-up exponential \(T (\d+)s\)", entry["forms"][0]).group(1))
+    d = diagnose([recording], load_muscle(spec["muscle"]), next_experiment=False)
+    drift = next(c["parameters"] for c in d.candidates if c["name"] == "drift")
+    assert not (d.answer == "viscoelasticity" and d.verdict.confident), (d.answer, d.verdict.probability)
+    if drift["clock"] == 0.0:  # on the wall clock its time constant is the truth's (on the pressure
+        # clock it is in seconds at 1 MPa, not comparable)
+        assert drift["tau_s"] == pytest.approx(truth_tau, rel=0.25)
 
 
 def test_the_noise_floor_never_stands_above_what_a_hypothesis_predicts():

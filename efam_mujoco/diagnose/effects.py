@@ -792,10 +792,10 @@ class Drift(Effect):
                 Param("d2_N_per_s_MPa", -10.0, 10.0, meaning="its growth with pressure"),
                 Param(
                     "tau_s",
-                    30.0,
+                    10.0,
                     1e6,
                     True,
-                    (100.0, 300.0, 1000.0, 3000.0, 1e5),
+                    (20.0, 100.0, 300.0, 1000.0, 3000.0, 1e5),
                     "time constant (clock seconds)",
                 ),
                 Param(

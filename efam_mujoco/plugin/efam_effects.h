@@ -91,7 +91,7 @@ static const EffectSpec kEffects[NEFFECT] = {
      {{"d0_N_per_s", -1.0, 1.0},
       {"d1_N_per_s", -10.0, 10.0},
       {"d2_N_per_s_MPa", -10.0, 10.0},
-      {"tau_s", 30.0, 1e6},
+      {"tau_s", 10.0, 1e6},
       {"clock", 0.0, 1.0, 1, 0.0, 1},
       {"course", -1.0, 1.0, 1, 1.0, 1}},
      1},
