@@ -84,6 +84,13 @@ LIB = ["friction", "viscoelasticity", "end_effects", "braid_compliance", "soften
 GROUPS = ("clean", "single", "two", "outside")
 #: the reviewer's seeds: 4700 + k * 7919 (k = the file's place in the plan) + variant * 104729
 SEED0, SEED_STEP, SEED_VARIANT = 4700, 7919, 104729
+
+
+def seed_of(k: int, variant: int) -> int:
+    """The seed of the ``k``-th file of the plan in seed set ``variant`` (0: the reviewer's own)."""
+    return SEED0 + k * SEED_STEP + variant * SEED_VARIANT
+
+
 HEADER = "time_s,length_m,pressure_kPa,force_N"
 
 
@@ -1090,7 +1097,7 @@ def main(argv=None) -> int:
     if args.write_csv:
         Path(args.write_csv).mkdir(parents=True, exist_ok=True)
     jobs = [
-        (spec, SEED0 + k * SEED_STEP + args.variant * SEED_VARIANT, args.write_csv)
+        (spec, seed_of(k, args.variant), args.write_csv)
         for k, spec in enumerate(everything)
         if not args.only or spec["id"] in args.only
     ]

@@ -243,21 +243,21 @@ def run_case(spec: tuple[int, str, str]) -> dict:
         if case.effects
         else (True, 0.0)
     )
+    row = {"seed": seed, "protocol": name, "kind": kind, "truth": case.names, "forms": [f for _, f in case.effects],
+           "shows": shows, "truth_left_after_refit_N": left}  # fmt: skip
     start = time.perf_counter()
     try:
         d = diagnose([recording], nominal, next_experiment=False)
     except PlausibilityError as refused:
         # a truthful recording the input checks refuse is a result of the run, not its end
         return {
-            "seed": seed, "protocol": name, "kind": kind, "truth": case.names, "forms": [f for _, f in case.effects],
-            "shows": shows, "truth_left_after_refit_N": left, "answer": REFUSED, "probability": 0.0,
-            "confident": False, "ambiguous": False, "contenders": [], "correct": False,
-            "samples": len(recording.time_s), "refusal": str(refused), "seconds": time.perf_counter() - start,
+            **row, "answer": REFUSED, "probability": 0.0, "confident": False, "ambiguous": False, "contenders": [],
+            "correct": False, "samples": len(recording.time_s), "refusal": str(refused),
+            "seconds": time.perf_counter() - start,
         }  # fmt: skip
     v = d.verdict
     return {
-        "seed": seed, "protocol": name, "kind": kind, "truth": case.names, "forms": [f for _, f in case.effects],
-        "shows": shows, "truth_left_after_refit_N": left, "answer": v.answer, "probability": v.probability,
+        **row, "answer": v.answer, "probability": v.probability,
         "confident": v.confident, "ambiguous": v.ambiguous, "contenders": v.contenders,
         "correct": correct(v.answer, kind, case.names, shows), "samples": d.n_samples,
         "structure": d.structure, **d.rms_summary(), "seconds": time.perf_counter() - start,

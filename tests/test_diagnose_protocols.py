@@ -808,9 +808,7 @@ def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_of_its_own_time_const
     # drift 0.94 on the main set and the replica's is no longer confident
     forms = _bench("bench_diagnose_forms")
     k, spec = next((k, s) for k, s in enumerate(forms.plan()) if s["id"] == case_id)
-    entry, recording, _ = forms.generate_one(
-        spec, forms.SEED0 + k * forms.SEED_STEP + variant * forms.SEED_VARIANT
-    )
+    entry, recording, _ = forms.generate_one(spec, forms.seed_of(k, variant))
     truth_tau = float(re.search(r"warm-up exponential \(T (\d+)s\)", entry["forms"][0]).group(1))
     d = diagnose([recording], load_muscle(spec["muscle"]), next_experiment=False)
     drift = next(c["parameters"] for c in d.candidates if c["name"] == "drift")
