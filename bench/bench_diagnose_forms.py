@@ -699,7 +699,7 @@ def apply_effect(sim, kind, form, size, rng, span):
                 np.sign(rng.normal()) * (1 - np.exp(-t / tc)),
                 None,
                 f"warm-up exponential (T {tc:.0f}s)",
-                {},
+                {"T_s": tc},
             )
         if form == "gain":
             return -prel(sim) * t / T, None, "gain creep: force loss growing linearly in time x P", {}
@@ -885,7 +885,7 @@ def generate_one(spec, seed):
     span = float(np.percentile(F_clean, 99.5) - np.percentile(F_clean, 0.5))
     F = F_clean.copy()
     L_meas = L.copy()
-    descs, sizes = [], []
+    descs, sizes, truths = [], [], []
     Fbase = F_clean
     for kind, form, size in sorted(spec["effects"], key=effect_order):
         if kind == "length_scale":
@@ -896,7 +896,8 @@ def generate_one(spec, seed):
             continue
         if kind == "time_skew":
             continue  # applied after noise on the force channel
-        g, newF, desc, _ = apply_effect(sim, kind, form, size, rng, span)
+        g, newF, desc, truth = apply_effect(sim, kind, form, size, rng, span)
+        truths.append({"effect": kind, "form": form, **truth})
         if newF is not None:
             # a physical base change: the change of the base force is added to what is there
             dF = newF - Fbase
@@ -927,7 +928,7 @@ def generate_one(spec, seed):
     meta = {"source": f"diagnose_forms {spec['id']} (seed {seed})", "columns": HEADER.split(","),
             "rest_length_m": m_nom.rest_length_m}  # fmt: skip
     recording = Recording(ts, Ls, Pk * 1000.0, Fs, meta)
-    entry = dict(spec, seed=seed, protocol_desc=pdesc, forms=descs,
+    entry = dict(spec, seed=seed, protocol_desc=pdesc, forms=descs, truth_params=truths,
                  effect_peak_over_span=[round(s, 4) for s in sizes], span_N=round(span, 1),
                  noise_true_N=round(sigF, 3), quant_N=float(q), n=int(n), duration_s=round(float(t[-1]), 1),
                  pmax_kPa=round(pmax / 1e3, 1))  # fmt: skip

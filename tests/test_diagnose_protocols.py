@@ -5,7 +5,6 @@ independently of the library, in other functional forms)."""
 
 import dataclasses
 import math
-import re
 
 import mujoco
 import numpy as np
@@ -809,7 +808,7 @@ def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_of_its_own_time_const
     forms = _bench("bench_diagnose_forms")
     k, spec = next((k, s) for k, s in enumerate(forms.plan()) if s["id"] == case_id)
     entry, recording, _ = forms.generate_one(spec, forms.seed_of(k, variant))
-    truth_tau = float(re.search(r"warm-up exponential \(T (\d+)s\)", entry["forms"][0]).group(1))
+    truth_tau = next(p["T_s"] for p in entry["truth_params"] if p["form"] == "warmup")
     d = diagnose([recording], load_muscle(spec["muscle"]), next_experiment=False)
     drift = next(c["parameters"] for c in d.candidates if c["name"] == "drift")
     assert not (d.answer == "viscoelasticity" and d.verdict.confident), (d.answer, d.verdict.probability)
