@@ -218,8 +218,9 @@ def test_maxwell_branch_relaxes_exponentially_during_a_hold(fam1):
 
 def test_drift_on_the_pressure_clock_stands_still_while_vented_and_can_accelerate(fam1):
     # written out: at a held pressure P the pressure clock runs at P_MPa seconds per second, so
-    # the saturating course is tau (1 - exp(-P_MPa t / tau)) and the accelerating one tau
-    # (exp(P_MPa t / tau) - 1); while vented the clock stops and the force holds its value
+    # the saturating course is tau (1 - exp(-P_MPa t / tau)), the accelerating one tau
+    # (exp(P_MPa t / tau) - 1) and the logarithmic one tau log(1 + P_MPa t / tau) (rubber's
+    # logarithmic creep); while vented the clock stops and the force holds its value
     dt = 0.05
     t = np.arange(0.0, 200.0, dt)
     P = np.where(t < 100.0, 0.4e6, 0.0)
@@ -229,7 +230,12 @@ def test_drift_on_the_pressure_clock_stands_still_while_vented_and_can_accelerat
     on = t < 100.0
     u = 0.4 * t[on]  # the clock at the end of every sample (P_MPa dt per step, none at t = 0)
     rate = d0 + d2 * 0.4
-    for course, expected in ((1.0, tau * (1 - np.exp(-u / tau))), (-1.0, tau * (np.exp(u / tau) - 1))):
+    courses = (
+        (1.0, tau * (1 - np.exp(-u / tau))),
+        (-1.0, tau * (np.exp(u / tau) - 1)),
+        (0.0, tau * np.log(1 + u / tau)),
+    )
+    for course, expected in courses:
         values = dict(d0_N_per_s=d0, d1_N_per_s=0.0, d2_N_per_s_MPa=d2, tau_s=tau, clock=1.0, course=course)
         f = E.get("drift").force(ctx, values)
         np.testing.assert_allclose(f[on], rate * expected, rtol=1e-9, atol=1e-12)
@@ -256,8 +262,8 @@ def test_an_accelerating_drift_stays_finite_on_a_long_recording(fam1):
 def test_a_mode_takes_only_its_own_values():
     with pytest.raises(ValueError, match=r"'clock' = 0.5 is not one of 0, 1"):
         E.check_values("drift", dict(VALUES["drift"], clock=0.5))
-    with pytest.raises(ValueError, match=r"'course' = 0 is not one of -1, 1"):
-        E.check_values("drift", dict(VALUES["drift"], course=0.0))
+    with pytest.raises(ValueError, match=r"'course' = 0.5 is not one of -1, 0, 1"):
+        E.check_values("drift", dict(VALUES["drift"], course=0.5))
     assert E.check_values("drift", VALUES["drift"])["clock"] == 0.0  # older files: the wall clock
 
 

@@ -254,7 +254,7 @@ def test_bladder_branches_relax_a_pressure_step_at_a_fixed_length():
     np.testing.assert_allclose(dF[hold], expected, rtol=1e-9)
 
 
-@pytest.mark.parametrize("clock, course", [(1.0, 1.0), (1.0, -1.0), (0.0, -1.0)])
+@pytest.mark.parametrize("clock, course", [(1.0, 1.0), (1.0, -1.0), (0.0, -1.0), (1.0, 0.0), (0.0, 0.0)])
 def test_drift_on_the_pressure_clock_or_accelerating_replays_as_the_reference(bench, clock, course):
     recording, muscle = bench
     effects = [("drift", dict(VALUES["drift"], clock=clock, course=course))]
@@ -355,6 +355,7 @@ BAD = {
     "nan": (with_effects("softening", softening__a="nan"), "'softening.a' must be a finite number"),
     "parameter of an effect not on": (with_effects("friction", drift__tau_s="300"), "'drift.tau_s' is given but effect 'drift' is not"),
     "a mode between its values": (with_effects("drift", drift__clock="0.5"), "'drift.clock' = 0.5 is not one of 0, 1"),
+    "a course between its modes": (with_effects("drift", drift__course="-0.5"), "'drift.course' = -0.5 is not one of -1, 0, 1"),
 }  # fmt: skip
 
 

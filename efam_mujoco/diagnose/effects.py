@@ -774,8 +774,8 @@ class Drift(Effect):
 
     #: the clocks: wall time, or the pressure-time integral in seconds at 1 MPa
     WALL, PRESSURE = 0.0, 1.0
-    #: the courses: saturating (1 - exp) or accelerating (exp - 1)
-    SATURATING, ACCELERATING = 1.0, -1.0
+    #: the courses: saturating (1 - exp), accelerating (exp - 1) or logarithmic (log(1 + u/tau))
+    SATURATING, ACCELERATING, LOGARITHMIC = 1.0, -1.0, 0.0
     #: an accelerating course's tau is at least the clock's span over this (its square stays
     #: finite in double precision: a numerical guard, not a physical bound)
     MAX_EXPONENT = 300.0
@@ -813,8 +813,8 @@ class Drift(Effect):
                     -1.0,
                     1.0,
                     True,
-                    (1.0, -1.0),
-                    "1: saturating; -1: accelerating",
+                    (1.0, -1.0, 0.0),
+                    "1: saturating; -1: accelerating; 0: logarithmic",
                     default=1.0,
                     discrete=True,
                 ),
@@ -826,9 +826,13 @@ class Drift(Effect):
 
     @staticmethod
     def course(u, tau: float, course: float):
-        """s(u): tau (1 - exp(-u/tau)) when saturating, tau (exp(u/tau) - 1) when accelerating
-        (both start at slope 1)."""
-        return tau * np.expm1(u / tau) if course == Drift.ACCELERATING else tau * -np.expm1(-u / tau)
+        """s(u): tau (1 - exp(-u/tau)) when saturating, tau (exp(u/tau) - 1) when accelerating,
+        tau log(1 + u/tau) when logarithmic (all three start at slope 1)."""
+        if course == Drift.ACCELERATING:
+            return tau * np.expm1(u / tau)
+        if course == Drift.LOGARITHMIC:
+            return tau * np.log1p(u / tau)
+        return tau * -np.expm1(-u / tau)
 
     def _clock(self, ctx, shape):
         return ctx.pressure_clock() if shape.get("clock", self.WALL) == self.PRESSURE else ctx.t

@@ -55,7 +55,7 @@ typedef struct {
   double lo, hi;  // inclusive, as effects.Param / check_values
   int optional;    // may be absent, as effects.Param.default: a key added after files were written
   double fallback;  // its value when absent (effects.Param.default)
-  int discrete;     // a mode: only lo or hi is allowed (effects.Param.discrete, a two-value grid)
+  int discrete;     // a mode: only the integers lo, lo + 1, ..., hi (effects.Param.discrete, its grid)
 } EffectParam;
 
 typedef struct {
@@ -331,8 +331,13 @@ static void effects_configure(const mjModel* m, int instance, EffectsConfig* fx,
       if (!(p->lo <= value && value <= p->hi)) {
         EFFECT_ERROR(m, instance, "config key '%s' = %.10g is outside [%g, %g]", key, value, p->lo, p->hi);
       }
-      if (p->discrete && value != p->lo && value != p->hi) {
-        EFFECT_ERROR(m, instance, "config key '%s' = %.10g is not one of %g, %g", key, value, p->lo, p->hi);
+      if (p->discrete && value != floor(value)) {
+        char modes[64] = "";  // "0, 1" or "-1, 0, 1": the modes are the integers lo..hi
+        for (int mode = (int)p->lo; mode <= (int)p->hi; mode++) {
+          size_t used = strlen(modes);
+          snprintf(modes + used, sizeof(modes) - used, mode > (int)p->lo ? ", %d" : "%d", mode);
+        }
+        EFFECT_ERROR(m, instance, "config key '%s' = %.10g is not one of %s", key, value, modes);
       }
       fx->value[e][j] = value;
     }
@@ -509,12 +514,15 @@ static double softening_step(const EffectsMuscle* k, const double* v, double* m,
 }
 
 // Drift.step: (d0 + d1 x + d2 P_MPa) s(u); u = the time since the start (clock 0) or the time under
-// pressure, the sum of P_MPa dt (clock 1, state u[0]); s saturating (course 1) or accelerating (-1).
+// pressure, the sum of P_MPa dt (clock 1, state u[0]); s saturating (course 1), accelerating (-1)
+// or logarithmic (0): tau (1 - exp(-u/tau)), tau (exp(u/tau) - 1), tau log(1 + u/tau).
 static double drift_step(const double* v, double* u, const EffectSample* s) {
   u[0] = s->first ? 0.0 : u[0] + max0(s->P) / 1e6 * s->dt;
   double tau = v[3];
   double clock = v[4] == 1.0 ? u[0] : s->t;
-  double ramp = v[5] == -1.0 ? tau * expm1(clock / tau) : tau * -expm1(-clock / tau);
+  double ramp = v[5] == -1.0  ? tau * expm1(clock / tau)
+                : v[5] == 0.0 ? tau * log1p(clock / tau)
+                              : tau * -expm1(-clock / tau);
   double force = (v[0] + v[1] * s->x + v[2] * s->P / 1e6) * ramp;
   return s->engaged ? force : 0.0;
 }
