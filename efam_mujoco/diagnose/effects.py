@@ -769,8 +769,9 @@ class Drift(Effect):
     """Drift: a force that builds up slowly (temperature, creep of the bladder or the set-up),
     depending on strain and pressure. Its clock is the time since the start, or the time spent
     under pressure (seconds at 1 MPa: rubber creeps under load, not while vented); its course
-    either saturates (a warm-up, primary creep) or accelerates (a warming that is still building,
-    tertiary creep)."""
+    saturates (a warm-up, primary creep), accelerates (a warming that is still building,
+    tertiary creep) or grows as a logarithm of the clock (rubber's logarithmic creep, which no
+    single time constant follows over decades)."""
 
     #: the clocks: wall time, or the pressure-time integral in seconds at 1 MPa
     WALL, PRESSURE = 0.0, 1.0
@@ -784,8 +785,9 @@ class Drift(Effect):
         super().__init__(
             name="drift",
             summary="slow change over time or under load (temperature, creep of the bladder or set-up)",
-            equation="dF = (d0 + d1 x + d2 P_MPa) s(u),  s = tau (1 - exp(-u/tau)) saturating or "
-            "tau (exp(u/tau) - 1) accelerating;  u = t, or u = int P_MPa dt (time under pressure)",
+            equation="dF = (d0 + d1 x + d2 P_MPa) s(u),  s = tau (1 - exp(-u/tau)) saturating, "
+            "tau (exp(u/tau) - 1) accelerating or tau log(1 + u/tau) logarithmic;  u = t, or u = int P_MPa dt "
+            "(time under pressure)",
             params=(
                 Param("d0_N_per_s", -1.0, 1.0, meaning="initial drift rate of the force (per clock second)"),
                 Param("d1_N_per_s", -10.0, 10.0, meaning="its growth with strain"),
