@@ -816,14 +816,15 @@ def test_a_long_transport_delay_is_fitted_as_a_delay():
 
 @pytest.mark.parametrize(
     "seed, family, clock, course",
-    [(70182, "sinusoidal", 1.0, 1.0), (108193, "isometric", 0.0, -1.0)],
+    [(70182, "sinusoidal", 1.0, 0.0), (108193, "isometric", 0.0, -1.0)],
     ids=["creep under pressure", "a warm-up still building"],
 )
 def test_a_drift_is_named_on_its_own_clock_and_course(seed, family, clock, course):
     # the virtual bench's drifts, written there: a logarithmic creep of the bladder's rest length
-    # under its pressure history (seed 70182, a calibration recording), and a bladder modulus
-    # falling as t^1.38 (seed 108193 of a benchmark run). With the wall clock's saturating
-    # course alone both were answered viscoelasticity (0.47, ambiguous; 0.82, confident)
+    # under its pressure history, log(1 + int P / p_top dt / t0) (seed 70182, a calibration
+    # recording), and a bladder modulus falling as t^1.38 (seed 108193 of a benchmark run). With
+    # the wall clock's saturating course alone both were answered viscoelasticity (0.47,
+    # ambiguous; 0.82, confident); the creep is now the logarithmic course on the pressure clock
     case = V.draw_case(seed, family, "single")
     assert [name for name, _ in case.effects] == ["drift"]
     recording = V.make(case)
@@ -855,7 +856,10 @@ def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_of_its_own_time_const
     # library): F + A (1 - exp(-t / T)), T 15-40 s. With the drift's time constant held at 30 s or
     # more, three of these four were answered viscoelasticity at p 0.83-0.90, its slow branch
     # standing in for the warm-up (d03 on both seed sets); with a floor of 10 s, d03 is answered
-    # drift 0.94 on the main set and the replica's is no longer confident
+    # drift 0.94 on the main set and the replica's is no longer confident. On the wall clock the
+    # fitted course follows the warm-up's over the test (normalised to its end value, within 0.1;
+    # a saturating course's time constant 25 % off T gives 0.06-0.09, a straight line 0.36): the
+    # saturating course, or the logarithmic one with a shorter time constant
     forms = _bench("bench_diagnose_forms")
     k, spec = next((k, s) for k, s in enumerate(forms.plan()) if s["id"] == case_id)
     entry, recording, _ = forms.generate_one(spec, forms.seed_of(k, variant))
@@ -863,9 +867,13 @@ def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_of_its_own_time_const
     d = diagnose([recording], load_muscle(spec["muscle"]), next_experiment=False)
     drift = next(c["parameters"] for c in d.candidates if c["name"] == "drift")
     assert not (d.answer == "viscoelasticity" and d.verdict.confident), (d.answer, d.verdict.probability)
-    if drift["clock"] == 0.0:  # on the wall clock its time constant is the truth's (on the pressure
-        # clock it is in seconds at 1 MPa, not comparable)
-        assert drift["tau_s"] == pytest.approx(truth_tau, rel=0.25)
+    if drift["clock"] == 0.0:  # (on the pressure clock its time is in seconds at 1 MPa, not comparable)
+        from efam_mujoco.diagnose.effects import Drift
+
+        t = recording.time_s - recording.time_s[0]
+        fitted = Drift.course(t, drift["tau_s"], drift["course"])
+        warm_up = 1.0 - np.exp(-t / truth_tau)
+        assert np.max(np.abs(fitted / fitted[-1] - warm_up / warm_up[-1])) < 0.1, drift
 
 
 def test_the_noise_floor_never_stands_above_what_a_hypothesis_predicts():
