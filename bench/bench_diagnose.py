@@ -21,8 +21,6 @@ right answer).
 Usage: python bench/bench_diagnose.py [--per-family 76] [--seed 40000] [--jobs 2]
        python bench/bench_diagnose.py --calibrate   (fits confidence.Calibration on its own seeds)
        python bench/bench_diagnose.py --calibrate --calibrate-rows A.json B.rows.jsonl   (from stored rows)
-       python bench/bench_diagnose.py --calibrate-follow-up A.json B.json   (the follow-up shift, from
-           the joined diagnoses of retired runs)
        python bench/bench_diagnose.py --speed --seed 89000   (30 000-sample recordings, one per family)
 Writes bench/results/diagnose.json (or diagnose_calibration.json) and docs/figures/diagnose_*.png.
 """
@@ -38,7 +36,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
-from dataclasses import asdict, replace  # noqa: E402
+from dataclasses import asdict  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -131,7 +129,7 @@ def try_recommendation(case, recording, nominal, d, seed: int) -> dict:
     rec = d.next_experiment["recommended"]
     e = experiment(rec["name"], d.ctx, stroke_speed(d.ctx, d.labels), rec.get("set_points"))
     extra = V.run_plan(case, e.t, e.L, e.P, min(case.sample_hz, 100.0), seed)
-    d2 = diagnose([recording, extra], nominal, next_experiment=False, follow_up=True)
+    d2 = diagnose([recording, extra], nominal, next_experiment=False)
     # the joined answer is judged on the joined data: the new test can make an effect show
     # that the first recording hid (or an effect that showed is still there)
     shows_joined, left_joined = (
@@ -148,7 +146,7 @@ def try_recommendation(case, recording, nominal, d, seed: int) -> dict:
         "correct": correct(d2.verdict.answer, kind, case.names, shows_joined),
         "shows_joined": shows_joined, "truth_left_joined_N": left_joined,
         # the joined verdict's inputs, so that a calibration can weigh the joined diagnoses too
-        **_verdict_inputs(d2), "follow_up": True,
+        **_verdict_inputs(d2),
     }  # fmt: skip
     out["resolved"] = bool(out["confident"] and out["correct"])
     return out
@@ -376,58 +374,7 @@ def fit_calibration(rows: list[dict]) -> Calibration:
     return Calibration(concentration=CALIBRATION.concentration, a=float(w[0]), b=float(w[1]), c=float(w[2]),
                        tie_margin=CALIBRATION.tie_margin, an=float(wn[0]), bn=float(wn[1]), cn=float(wn[2]),
                        dn=float(wn[3]), effect_offset={n: float(v) for n, v in zip(names, w[3:])},
-                       offset_ridge=float(ridge), follow_up_shift=CALIBRATION.follow_up_shift)  # fmt: skip
-
-
-#: the follow-up shifts tried (log-odds of the physics map; the likelihood is then refined between)
-FOLLOW_UP_SHIFTS = tuple(np.round(np.arange(-1.0, 4.01, 0.25), 2))
-
-
-def joined_rows(paths: list[str]) -> list[dict]:
-    """The joined diagnoses (first recording plus the recommended test) stored in benchmark runs,
-    each as a row that ``rescore`` reads: the joined verdict's inputs, judged on the joined data,
-    marked as a follow-up, under this code's bootstrap. Rows stored without those inputs are
-    skipped."""
-    out = []
-    for path in paths:
-        try:
-            data = json.loads(Path(path).read_text())
-            rows = data["cases"] if isinstance(data, dict) else data
-            for r in rows:
-                nxt = r.get("next")
-                if not nxt or "raw" not in nxt:
-                    continue
-                out.append(with_current_bootstrap(
-                    nxt | {"seed": r["seed"], "family": r["family"], "kind": r["kind"], "truth": r["truth"],
-                           "shows": nxt.get("shows_joined", True), "follow_up": True}))  # fmt: skip
-        except OSError as e:
-            raise SystemExit(f"{path}: cannot read stored rows ({e.strerror})") from None
-        except (ValueError, KeyError, TypeError) as e:
-            raise SystemExit(
-                f"{path}: not a benchmark run (a JSON with 'cases'): {type(e).__name__}: {e}"
-            ) from None
-    return out
-
-
-def fit_follow_up_shift(rows: list[dict], cal: Calibration = CALIBRATION) -> tuple[float, dict[float, float]]:
-    """The follow-up shift of the physics map's log-odds by maximum likelihood of the joined
-    verdicts' reported probabilities (right = the joined answer is right on the joined data):
-    the grid ``FOLLOW_UP_SHIFTS``, then a bounded search around its best. Returns the shift and
-    the log-likelihood per grid shift."""
-    from scipy.optimize import minimize_scalar
-
-    def loglik(shift: float) -> float:
-        scored = rescore(rows, replace(cal, follow_up_shift=float(shift)))
-        p = np.clip([r["probability"] for r in scored], 1e-6, 1 - 1e-6)
-        right = np.array([r["correct"] for r in scored], float)
-        return float(np.sum(right * np.log(p) + (1 - right) * np.log(1 - p)))
-
-    grid = {float(g): loglik(g) for g in FOLLOW_UP_SHIFTS}
-    best = max(grid, key=grid.get)
-    step = float(FOLLOW_UP_SHIFTS[1] - FOLLOW_UP_SHIFTS[0])
-    found = minimize_scalar(lambda g: -loglik(g), bounds=(best - step, best + step), method="bounded",
-                            options={"xatol": 0.01})  # fmt: skip
-    return round(float(found.x), 2), grid
+                       offset_ridge=float(ridge))  # fmt: skip
 
 
 def stored_rows(paths: list[str], cases: list[tuple[int, str, str]]) -> list[dict]:
@@ -498,7 +445,6 @@ def rescore(rows: list[dict], cal: Calibration) -> list[dict]:
             dd_z=ev.get("dd_z"),
             dd_z_none=ev.get("dd_z_none"),
             excess_left=ev.get("excess_left"),
-            follow_up=bool(r.get("follow_up", False)),
         )
         out.append(r | {"answer": v.answer, "probability": v.probability, "confident": v.confident,
                         "ambiguous": v.ambiguous, "tentative": v.tentative, "outside_supported": v.outside_supported,
@@ -625,12 +571,6 @@ def main(argv=None) -> int:
         help="with --calibrate: fit on the rows stored in these files (a run's .rows.jsonl, or a JSON with 'cases') "
         "instead of running the calibration cases; every calibration seed must be there",
     )
-    ap.add_argument(
-        "--calibrate-follow-up",
-        nargs="+",
-        metavar="FILE",
-        help="fit the follow-up shift on the joined diagnoses stored in these benchmark runs (retire their seeds)",
-    )
     ap.add_argument("--no-next", action="store_true", help="do not try the recommended next experiments")
     ap.add_argument("--out", default=None)
     ap.add_argument(
@@ -661,25 +601,6 @@ def main(argv=None) -> int:
         if path == RESULTS:  # the documented figures belong to the documented run alone
             for fig in write_figures(rows, summary):
                 print(f"figure: {fig}")
-        return 0
-    if args.calibrate_follow_up:
-        rows = joined_rows(args.calibrate_follow_up)
-        shift, grid = fit_follow_up_shift(rows)
-        seeds = sorted(r["seed"] for r in rows)
-        print(f"{len(rows)} joined diagnoses (seeds {seeds[0]}-{seeds[-1]}); log-likelihood by shift:")
-        print("  " + ", ".join(f"{g:g}: {v:.2f}" for g, v in grid.items()))
-        before = rescore(rows, replace(CALIBRATION, follow_up_shift=0.0))
-        after = rescore(rows, replace(CALIBRATION, follow_up_shift=shift))
-        for name, scored in (("no shift", before), (f"shift {shift:g}", after)):
-            resolved = sum(r["confident"] and r["correct"] for r in scored)
-            wrong = sum(r["confident"] and not r["correct"] for r in scored)
-            print(f"{name}: resolved {resolved} of {len(scored)}, confident and wrong {wrong}")
-        print(f"fitted follow_up_shift = {shift:g}")
-        write_json_atomic(
-            args.out or RESULTS.with_name("diagnose_follow_up_calibration.json"),
-            {"follow_up_shift": shift, "loglik_by_shift": grid, "files": args.calibrate_follow_up,
-             "rows": len(rows), "seeds": seeds},
-        )  # fmt: skip
         return 0
     if args.calibrate:
         cases = calibration_plan()

@@ -156,20 +156,6 @@ def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
     assert main(["diagnose", str(bad), "--muscle", "NOPE"]) == 2
 
 
-def test_follow_up_needs_a_first_recording_and_then_the_test(tmp_path, runs, capsys):
-    # --follow-up says the last file is the test an earlier diagnosis recommended: alone, there
-    # is nothing it follows (one clear line, exit 2; the Python call says the same)
-    recording, truth, _ = runs["pressure_lag"]
-    csv = write_csv(tmp_path / "rec.csv", recording)
-    assert main(["diagnose", str(csv), "--muscle", truth.base_name, "--follow-up"]) == 2
-    assert (
-        "--follow-up needs the first recording(s) and then the recommended test: got 1 file"
-        in capsys.readouterr().err
-    )
-    with pytest.raises(ValueError, match="follow_up means the last recording is the recommended test"):
-        diagnose([recording], load_muscle(truth.base_name), follow_up=True)
-
-
 def test_effect_model_rejects_unknown_effects():
     with pytest.raises(ValueError, match="unknown effect"):
         EffectModel(load_muscle("FAM1"), [("temperature", {})])

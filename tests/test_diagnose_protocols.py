@@ -546,57 +546,6 @@ def test_a_term_that_often_stands_in_for_other_physics_gets_a_lower_physics_prob
         assert sum(v.probabilities.values()) == pytest.approx(1.0)
 
 
-def test_a_follow_up_shift_is_recovered_from_joined_diagnoses_that_were_under_confident():
-    # synthetic joined diagnoses, written here: each one's answer is right with the probability
-    # the single-recording map gives its measurements, raised by 1.5 in log-odds (the answer
-    # survived the test chosen to overturn it); the maximum-likelihood shift must find about 1.5,
-    # and a verdict marked follow-up must move the physics map's log-odds by exactly the shift
-    bench = _bench()
-    base = dataclasses.replace(bench.CALIBRATION, follow_up_shift=0.0)
-    rng = np.random.default_rng(5)
-    rows = []
-    for _ in range(600):
-        # a data-driven gain neither material nor significant: outside does not compete, and
-        # drift is the answer at the probability the map gives
-        cut, gain = float(rng.uniform(0.3, 1.0)), float(rng.uniform(0.0, 0.2))
-        q = named_physics_probability(cut, gain, base, "drift")
-        right = rng.random() < 1.0 / (1.0 + math.exp(-(math.log(q / (1.0 - q)) + 1.5)))
-        rows.append({"raw": {"none": 0.0, "drift": 1.0}, "delta_bic": {"drift": -50.0}, "excess_cut": cut,
-                     "dd_gain": gain, "n_blocks": 40, "excess": 0.5, "dd_gain_none": 0.3, "kind": "single",
-                     "truth": ["drift"] if right else ["friction"], "shows": True, "follow_up": True,
-                     "evidence": {"dd_z": 0.0}})  # fmt: skip
-    shift, loglik = bench.fit_follow_up_shift(rows, base)
-    assert shift == pytest.approx(1.5, abs=0.35)
-    assert max(loglik, key=loglik.get) == pytest.approx(shift, abs=0.25)
-    shifted = dataclasses.replace(base, follow_up_shift=shift)
-    plain = verdict({"none": 0.0, "drift": 1.0}, excess_cut=0.7, dd_gain=0.05, n_blocks=40, cal=shifted)
-    after = verdict(
-        {"none": 0.0, "drift": 1.0}, excess_cut=0.7, dd_gain=0.05, n_blocks=40, cal=shifted, follow_up=True
-    )
-    logit = lambda p: math.log(p / (1.0 - p))  # noqa: E731
-    assert logit(after.physics_probability) - logit(plain.physics_probability) == pytest.approx(shift)
-
-
-def test_the_follow_up_shift_in_force_is_the_one_fitted_on_the_stored_joined_diagnoses():
-    import json
-    from pathlib import Path
-
-    from efam_mujoco.diagnose.confidence import CALIBRATION
-
-    stored = Path(__file__).resolve().parents[1] / "bench" / "results" / "diagnose_follow_up_calibration.json"
-    fitted = json.loads(stored.read_text())
-    assert CALIBRATION.follow_up_shift == pytest.approx(fitted["follow_up_shift"], abs=5e-3)
-    # fitted on retired runs only: no run scored with a follow-up shift scores any of its seeds
-    assert fitted["rows"] >= 100 and len(fitted["seeds"]) == fitted["rows"]
-    scored = 0
-    for path in stored.parent.glob("diagnose_*.json"):
-        run = json.loads(path.read_text())
-        if "follow_up_shift" in run.get("settings", {}).get("calibration", {}):
-            assert not {r["seed"] for r in run["cases"]} & set(fitted["seeds"]), path.name
-            scored += 1
-    assert scored >= 2  # the documented samples
-
-
 def test_the_physics_map_never_reorders_the_bootstraps_shares():
     # the map is fitted on the raw winner's measurements and term: one value for every effect,
     # so a term with a quarter of the draws and a large offset (softening) never overtakes the

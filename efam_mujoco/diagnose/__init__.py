@@ -220,14 +220,11 @@ def diagnose(
     max_effects: int = 2,
     next_experiment: bool = True,
     allow=(),
-    follow_up: bool = False,
 ) -> Diagnosis:
     """Diagnose the mismatch between ``muscle`` (its geometry is the starting point; its law and
     dead band are re-fitted) and force-length-pressure ``recordings``. The recordings pass the
     ``efam diagnose`` plausibility checks first (``recordings.check_for_fit``): a failed check
-    not named in ``allow`` (or ``allow="all"``) raises ``PlausibilityError``. ``follow_up``: the
-    last recording is the test that a diagnosis of the others recommended (``next_experiment``);
-    the verdict then uses the follow-up calibration (``confidence``)."""
+    not named in ``allow`` (or ``allow="all"``) raises ``PlausibilityError``."""
     start = time.perf_counter()
     recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
     if not recordings:
@@ -239,11 +236,6 @@ def diagnose(
             )
         if len(r) < MIN_SAMPLES:
             raise ValueError(f"{r.meta.get('source', 'recording')}: too few samples to diagnose ({len(r)})")
-    if follow_up and len(recordings) < 2:
-        raise ValueError(
-            "diagnose: follow_up means the last recording is the recommended test run after the others; "
-            f"got {len(recordings)} recording"
-        )
     refuse_copies(recordings)
     check_pressure_Pa(np.concatenate([r.pressure_Pa for r in recordings]), "diagnose")
     if not isinstance(muscle, Muscle):
@@ -299,8 +291,7 @@ def diagnose(
     excess_left = max(1.0 - noise**2 / max(on_top[0].heldout_rms ** 2, 1e-300), 0.0)
     dd_z, dd_z_none = _dd_z(on_top[1], block), _dd_z(corr_none, block)
     judged = verdict(raw, cut, on_top[1].gain, int(block.max()) + 1, excess=excess, dd_gain_none=corr_none.gain,
-                     pair=pair, block_sse=sse, dd_z=dd_z, dd_z_none=dd_z_none, excess_left=excess_left,
-                     follow_up=follow_up)  # fmt: skip
+                     pair=pair, block_sse=sse, dd_z=dd_z, dd_z_none=dd_z_none, excess_left=excess_left)  # fmt: skip
     reported = corr if kept else correction(engine, base, sensitivity=True)
     unexplained = _unexplained(ctx, labels, force - final.prediction, noise, reported)
     design = None
@@ -384,7 +375,7 @@ def diagnose(
         evidence={"block_sse": {k: v.tolist() for k, v in sse.items()}, "excess_left": excess_left,
                   "dd_z": dd_z, "dd_z_none": dd_z_none},
         verdict=judged, correction=reported, unexplained=unexplained, next_experiment=design,
-        structure=labels.describe() + ("; the last recording is the recommended follow-up test" if follow_up else ""),
+        structure=labels.describe(),
         heldout_residual_before=base.heldout_residual, heldout_residual_after=final.heldout_residual,
         muscle_nominal=muscle,
     )  # fmt: skip

@@ -38,15 +38,6 @@ virtual bench drawn in the benchmark's own mix of clean, one-effect, two-effect 
 there but hard to see", and its probabilities are off by that much. The benchmark measures the
 expected calibration error on other seeds.
 
-**After the recommended test** (``follow_up``: the last recording is the experiment a diagnosis
-of the others recommended, ``design``). The maps were fitted on single recordings; the same
-measurements after a test chosen to separate the two contenders say more, since the answer has
-survived the test most likely to overturn it. Diagnoses of a recording joined with its
-recommended test were under-confident under the single-recording map (their answers at p 0.5-0.8
-were mostly right), so their ``named_physics_probability`` log-odds gain ``follow_up_shift``,
-fitted by maximum likelihood on the joined diagnoses of retired benchmark runs
-(``bench/bench_diagnose.py --calibrate-follow-up``; their seeds are not scored again).
-
 **Does anything outside the library compete?** Only when the data support it: the unnamed
 data-driven correction (``datadriven``) fitted on top of the library's winner (the kept terms)
 lowers its held-out error by at least ``DD_MIN_GAIN`` and significantly (a paired test over the
@@ -145,9 +136,6 @@ class Calibration:
         }
     )  # fmt: skip
     offset_ridge: float = 0.3  # the ridge weight on the offsets the cross-validation chose
-    #: added to p_physics's log-odds when the last recording is the recommended follow-up test
-    #: (``bench/bench_diagnose.py --calibrate-follow-up``: 101 joined diagnoses of retired runs)
-    follow_up_shift: float = 1.02
 
 
 CALIBRATION = Calibration()
@@ -354,18 +342,12 @@ def best_effect_z(block_sse: dict | None) -> float:
 
 
 def named_physics_probability(
-    excess_cut: float,
-    dd_gain: float,
-    cal: Calibration = CALIBRATION,
-    effect: str | None = None,
-    follow_up: bool = False,
+    excess_cut: float, dd_gain: float, cal: Calibration = CALIBRATION, effect: str | None = None
 ) -> float:
     """Probability that the library term ``effect`` (the best one's measured excess cut and
-    data-driven gain) is the physics, not a stand-in for something outside; ``follow_up``: the
-    data end with the test a diagnosis recommended (its log-odds gain ``follow_up_shift``)."""
+    data-driven gain) is the physics, not a stand-in for something outside."""
     cut, g = physics_features(excess_cut, dd_gain)
     z = cal.a + cal.b * cut + cal.c * g + cal.effect_offset.get(effect, 0.0)
-    z += cal.follow_up_shift if follow_up else 0.0
     return 1.0 / (1.0 + math.exp(-z))
 
 
@@ -454,7 +436,7 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
             cal: Calibration = CALIBRATION, excess: float = 0.0, dd_gain_none: float = 0.0,
             pair: tuple[str, str] | None = None, *, block_sse: dict | None = None,
             dd_z: float | None = None, dd_z_none: float | None = None,
-            excess_left: float | None = None, follow_up: bool = False) -> Verdict:  # fmt: skip
+            excess_left: float | None = None) -> Verdict:  # fmt: skip
     """Probabilities of none / each effect / outside the library, the answer, and the doubt.
     ``excess_cut``, ``dd_gain``: of the best library term; ``excess``, ``dd_gain_none``: of the
     model alone (share of its held-out mean square above the noise; the data-driven gain on it).
@@ -465,8 +447,7 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     and outside always competes): ``block_sse`` hypothesis -> held-out squared error per block;
     ``dd_z``, ``dd_z_none``: paired z of the data-driven gain on the best term and on none;
     ``excess_left``: the kept terms' held-out mean square above the noise, as a share (reported;
-    it does not let outside in by itself). ``follow_up``: the last recording is the test a
-    diagnosis of the others recommended (the map's follow-up shift applies)."""
+    it does not let outside in by itself)."""
     # on top of a named term only the correction's paired test lets outside in: the excess a term
     # leaves is also what an in-library effect in another form, or a second one, leaves
     support = outside_supported(dd_gain, dd_z, None)
@@ -481,7 +462,7 @@ def verdict(raw: dict[str, float], excess_cut: float, dd_gain: float, n_blocks: 
     # overstate a term that explains less (a softening with a quarter of the draws overtook a
     # braid stretch with three quarters)
     best_effect = max(effects, key=effects.get) if effects else None
-    q = named_physics_probability(excess_cut, dd_gain, cal, best_effect, follow_up)
+    q = named_physics_probability(excess_cut, dd_gain, cal, best_effect)
     for h, p in effects.items():
         probs[h] = p * q
     probs[OUTSIDE] = sum(effects.values()) * (1.0 - q) + p_none * (1.0 - q0)

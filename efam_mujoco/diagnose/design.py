@@ -575,8 +575,7 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
             f"{best['predicted_difference_peak_N']:.2f} N; {best['unabsorbed_rms_N']:.2f} N RMS that no re-fit "
             f"of the model's parameters or of the rival's amplitudes could take up) against a noise floor of "
             f"{noise_N:.2f} N; expected decision z {best['expected_z']:.1f} over {best['blocks']} blocks "
-            f"({best['duration_s']:.0f} s). Then diagnose the recordings with that test last, as a follow-up "
-            "(efam diagnose ... --follow-up)."
+            f"({best['duration_s']:.0f} s)."
         )
         if best["expected_z"] < 1.0:
             # a bootstrap win fraction under Phi(1) = 0.84: the test is the best on offer, not a decision

@@ -284,12 +284,6 @@ def register_cli(subparsers) -> None:
     p.add_argument("--json", help="write the JSON result here")
     p.add_argument("--report", metavar="DIR", help="write report.txt and the figures into DIR")
     p.add_argument("--tension-only", action="store_true", help="a muscle that cannot push (contractile)")
-    p.add_argument(
-        "--follow-up",
-        action="store_true",
-        help="the last FILE is the next experiment a diagnosis of the other files recommended "
-        "(its verdict uses the follow-up calibration)",
-    )
     from ..recordings import add_recording_arguments
 
     add_recording_arguments(p)
@@ -305,10 +299,6 @@ def run(args) -> int:
     from ..musclefile import check_tension_only, load_muscle
     from ..recordings import read_for_fit
 
-    if args.follow_up and len(args.files) < 2:
-        raise ValueError(
-            f"--follow-up needs the first recording(s) and then the recommended test: got {len(args.files)} file"
-        )
     if args.report:
         check_replaceable_folder(args.report, "--report")
     muscle = load_muscle(args.muscle)
@@ -317,7 +307,7 @@ def run(args) -> int:
         check_tension_only(muscle, f"--tension-only with --muscle {args.muscle}")
     recordings = read_for_fit(args, muscle, warn=lambda line: print(line, file=sys.stderr))
     # read_for_fit ran the plausibility checks and said what --allow let through
-    d = diagnose(recordings, muscle, allow="all", follow_up=args.follow_up)
+    d = diagnose(recordings, muscle, allow="all")
     report = text(d)
     print(report, end="")
     outputs = OutputSet()
