@@ -110,7 +110,9 @@ def test_bladder_share_plus_pressure_term_is_eq2(fam1):
 
 
 VALUES = {
-    "friction": dict(f0_N=2.0, f1_N_per_MPa=8.0, slip_strain=0.004, slip_kPa=8.0, relax_per_s=0.05),
+    "friction": dict(
+        f0_N=2.0, f1_N_per_MPa=8.0, slip_strain=0.004, slip_kPa=8.0, relax_per_s=0.05, smooth=0.0
+    ),
     "viscoelasticity": dict(k0_N=40.0, k1_N_per_MPa=60.0, g_bladder=0.2, tau_s=3.0, g_slow_bladder=0.1),
     "end_effects": dict(kappa0=0.05, kappa1=0.1, P_e_kPa=80.0),
     "braid_compliance": dict(b1_per_MPa=0.02, b2_per_MPa2=-0.01),
@@ -182,6 +184,36 @@ def test_friction_opposes_motion_and_persists_through_a_hold(fam1):
     f = E.get("friction").force(_ctx(fam1, t, L, np.full(500, 200e3)), relaxing)
     hold = np.arange(300, 500)
     np.testing.assert_allclose(f[hold] / f[299], np.exp(-0.05 * (t[hold] - t[299])), rtol=1e-12)
+
+
+def test_smooth_friction_rounds_the_corner_as_dahls_model(fam1):
+    # Dahl's model, dF/dx = sigma (1 - F/F_c sign(dx)), from F = 0 on a lengthening stroke at a
+    # constant pressure: F = F_c (1 - exp(-(x - x_0) / w)), w = F_c / sigma; reversing from +F_c
+    # it goes back as F_c (2 exp(-(x_top - x) / w) - 1). The sharp (play) operator instead is
+    # F_c (x - x_0) / w up to F_c, then flat. Written out here, not taken from effects.play.
+    rest = fam1.rest_length_m
+    x = 0.03 * np.r_[np.linspace(0.0, 1.0, 301), np.linspace(1.0, 0.0, 301)[1:]]
+    L = rest * (1 + x)
+    t = np.linspace(0.0, 60.0, len(x))
+    P = np.full(len(x), 250e3)
+    v = dict(VALUES["friction"], slip_kPa=0.0, relax_per_s=0.0, smooth=1.0)
+    F_c = v["f0_N"] + v["f1_N_per_MPa"] * 0.25
+    w = v["slip_strain"]
+    up, down = np.arange(301), np.arange(301, len(x))
+    expected = np.empty(len(x))
+    expected[up] = F_c * (1 - np.exp(-x[up] / w))
+    top = expected[300]
+    # back down: dF/d(-x) = sigma (1 + F/F_c): F + F_c = (top + F_c) exp(-(x_top - x) / w)
+    expected[down] = (top + F_c) * np.exp(-(x[300] - x[down]) / w) - F_c
+    f = E.get("friction").force(_ctx(fam1, t, L, P), v)
+    np.testing.assert_allclose(-f, expected, rtol=1e-9, atol=1e-12)  # friction opposes the motion
+    # the sharp corner: the same stroke with smooth 0 reaches F_c at x = w and stays there
+    sharp = E.get("friction").force(_ctx(fam1, t, L, P), dict(v, smooth=0.0))
+    assert -sharp[up][x[up] >= w * 1.01] == pytest.approx(F_c)
+    assert np.max(np.abs(sharp - f)) > 0.2 * F_c  # the two corners differ by a good share of F_c
+    # the per-sample reference takes the same state
+    m = E.EffectModel(fam1, [("friction", v)])
+    np.testing.assert_allclose(m.push_stepwise(t, L, P) - fam1.push(P, L), f, rtol=1e-9, atol=1e-9)
 
 
 def test_a_pressure_change_slides_the_same_contact_as_a_stroke(fam1):
@@ -265,6 +297,24 @@ def test_a_mode_takes_only_its_own_values():
     with pytest.raises(ValueError, match=r"'course' = 0.5 is not one of -1, 0, 1"):
         E.check_values("drift", dict(VALUES["drift"], course=0.5))
     assert E.check_values("drift", VALUES["drift"])["clock"] == 0.0  # older files: the wall clock
+    with pytest.raises(ValueError, match=r"'smooth' = 0.5 is not one of 0, 1"):
+        E.check_values("friction", dict(VALUES["friction"], smooth=0.5))
+
+
+def test_the_search_tries_a_mode_at_its_own_values_only(fam1):
+    # a noise floor raises a width's lowest searched value; a mode has none to raise (friction's
+    # floor once turned its smooth 0 into 4.7e-4, which the model then refused)
+    t = np.linspace(0.0, 10.0, 200)
+    L = fam1.rest_length_m * (1 + 0.1 * np.sin(t))
+    ctx = _ctx(fam1, t, L, 200e3 + 5e3 * np.random.default_rng(0).standard_normal(200))
+    modes = [(e, p) for e in E.LIBRARY.values() for p in e.shapes if p.discrete]
+    assert {(e.name, p.key) for e, p in modes} >= {
+        ("friction", "smooth"),
+        ("drift", "clock"),
+        ("drift", "course"),
+    }
+    for e, p in modes:
+        assert e.shape_range(ctx, p)[1] == p.grid, (e.name, p.key)
 
 
 def test_pressure_lag_at_fixed_length_is_the_lagged_pressure_through_the_model(fam1):

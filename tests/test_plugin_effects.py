@@ -264,6 +264,16 @@ def test_drift_on_the_pressure_clock_or_accelerating_replays_as_the_reference(be
     assert_same_force(rig.replay(recording, muscle, effects), reference)
 
 
+def test_smooth_friction_replays_as_the_reference(bench):
+    recording, muscle = bench
+    for relax in (0.0, 0.05):
+        effects = [("friction", dict(VALUES["friction"], relax_per_s=relax, smooth=1.0))]
+        reference = stepwise(muscle, effects, recording)
+        sharp = stepwise(muscle, [("friction", dict(effects[0][1], smooth=0.0))], recording)
+        assert np.max(np.abs(reference - sharp)) > 0.05  # the rounded corner differs here (N)
+        assert_same_force(rig.replay(recording, muscle, effects), reference)
+
+
 # ------------------------------------------------------- the state advances once per step
 STATEFUL = [(k, VALUES[k]) for k in ("friction", "viscoelasticity", "softening", "drift", "pressure_lag")]
 
@@ -356,6 +366,7 @@ BAD = {
     "parameter of an effect not on": (with_effects("friction", drift__tau_s="300"), "'drift.tau_s' is given but effect 'drift' is not"),
     "a mode between its values": (with_effects("drift", drift__clock="0.5"), "'drift.clock' = 0.5 is not one of 0, 1"),
     "a course between its modes": (with_effects("drift", drift__course="-0.5"), "'drift.course' = -0.5 is not one of -1, 0, 1"),
+    "a corner between sharp and smooth": (with_effects("friction", friction__smooth="0.3"), "'friction.smooth' = 0.3 is not one of 0, 1"),
 }  # fmt: skip
 
 

@@ -4,9 +4,10 @@ Every candidate adds a force ``dF`` (N, MuJoCo sign: positive pushes the ends ap
 model's ``Muscle.push(P, L)``. It is computed from what a simulation step knows: the gauge pressure
 P, the length L, their previous values (so their rates), the time t since the start, and a small
 state. Each term is written so that its amplitudes enter linearly (fitted by bounded linear least
-squares together with small corrections of the model's own parameters) and at most three *shape*
+squares together with small corrections of the model's own parameters) and a few *shape*
 parameters (slip widths, a relaxation rate, a time constant) enter non-linearly (searched on a
-grid, then refined).
+grid, then refined), with at most two *modes* (a clock, a course, a corner's form) taken from
+their values only.
 
 Notation: x = L / L_rest - 1 (axial strain), P_MPa = P / 1e6, B and N the thread length and turns,
 F(P, L) the model's push force, play(u, w) the play operator (a backlash of half-width w whose
@@ -107,10 +108,13 @@ def delayed(t: np.ndarray, u: np.ndarray, delay: float, starts=(0,)) -> np.ndarr
     return out
 
 
-def play(u: np.ndarray, width: float, starts=(0,), t=None, relax_per_s: float = 0.0) -> np.ndarray:
+def play(
+    u: np.ndarray, width: float, starts=(0,), t=None, relax_per_s: float = 0.0, smooth: bool = False
+) -> np.ndarray:
     """Play operator output z in [-1, 1] (0 at each start): z_k = clip(a_k z_{k-1} + du_k/width,
     -1, 1) with a_k = exp(-relax_per_s (t_k - t_{k-1})): 1 (no relaxation) unless times ``t`` and
-    a rate are given."""
+    a rate are given. ``smooth``: Dahl's operator instead, dz = (1 - z sign(du)) du/width, whose
+    corner is rounded: z approaches +-1 exponentially in the slip (:func:`dahl_step`)."""
     out = np.empty(len(u))
     values = (np.asarray(u, dtype=float) / width).tolist()
     if relax_per_s > 0.0 and t is not None:
@@ -124,6 +128,13 @@ def play(u: np.ndarray, width: float, starts=(0,), t=None, relax_per_s: float = 
     for b, e in segments(np.asarray(starts), len(u)):
         z = 0.0
         prev = values[b]
+        if smooth:  # two loops: this one runs for every shape the search tries
+            for i in range(b, e):
+                v = values[i]
+                z = dahl_step(z * keep[i], v - prev)
+                prev = v
+                out[i] = z
+            continue
         for i in range(b, e):
             v = values[i]
             z = z * keep[i] + v - prev
@@ -131,6 +142,16 @@ def play(u: np.ndarray, width: float, starts=(0,), t=None, relax_per_s: float = 
             z = 1.0 if z > 1.0 else (-1.0 if z < -1.0 else z)
             out[i] = z
     return out
+
+
+def dahl_step(z: float, du: float) -> float:
+    """Dahl's friction state after a slip ``du`` (in widths) from ``z``: dz/du = 1 - z sign(du),
+    integrated exactly over the step, so z stays inside [-1, 1] at any step size."""
+    if du > 0.0:
+        return 1.0 - (1.0 - z) * math.exp(-du)
+    if du < 0.0:
+        return -1.0 + (1.0 + z) * math.exp(du)
+    return z
 
 
 def running_max(u: np.ndarray, starts=(0,)) -> np.ndarray:
@@ -465,7 +486,11 @@ class Sample:
 
 class Friction(Effect):
     """Rate-independent friction at one sliding contact: a play operator on a slip that the strain
-    and the pressure both drive, its stick force growing with pressure and able to relax in holds."""
+    and the pressure both drive, its stick force growing with pressure and able to relax in holds.
+    The operator's corner is sharp (elastic, then sliding: Prandtl's) or rounded (``smooth``:
+    Dahl's, the stuck share nearing the full force exponentially in the slip). Real contacts
+    are mostly rounded (bristles, a spread of asperities: Dahl, LuGre, Iwan), and a rounded
+    loop that only the sharp corner could follow was taken by the viscoelastic branches."""
 
     def __init__(self):
         super().__init__(
@@ -476,7 +501,8 @@ class Friction(Effect):
             ),
             equation=(
                 "dF = -(f0 + f1 P_MPa) z,  z = play(x / w_x + s_P P / w_P) relaxing at rate r: "
-                "z_k = clip(exp(-r dt) z_{k-1} + du_k, -1, 1),  s_P = sign(B^2 - 3 L^2)"
+                "z_k = clip(exp(-r dt) z_{k-1} + du_k, -1, 1), or rounded (smooth 1, Dahl): "
+                "dz/du = 1 - z sign(du);  s_P = sign(B^2 - 3 L^2)"
             ),
             params=(
                 Param("f0_N", 0.0, 100.0, meaning="friction force opposing the slip at zero pressure"),
@@ -507,6 +533,17 @@ class Friction(Effect):
                     "the contact); 0 (when absent): it persists",
                     default=0.0,
                 ),
+                Param(
+                    "smooth",
+                    0.0,
+                    1.0,
+                    True,
+                    (0.0, 1.0),
+                    "0: a sharp stick-slip corner (play operator); 1: a rounded one (Dahl: the stuck "
+                    "share nears the full force exponentially in the slip)",
+                    default=0.0,
+                    discrete=True,
+                ),
             ),
             state=("z",),
             plugin="efam.muscle keys friction.*; 1 play state (and the shared previous L and P)",
@@ -525,6 +562,8 @@ class Friction(Effect):
     def shape_range(self, ctx, p):
         if p.key == "relax_per_s":
             return self.RELAX_FLOOR_PER_S, p.grid, p.hi
+        if p.discrete:
+            return p.lo, p.grid, p.hi
         # a pre-sliding width below a few sensor-noise steps would let the play operator follow
         # the measured noise (and "explain" the noise the model inherits from its inputs)
         if p.key == "slip_kPa":
@@ -538,7 +577,7 @@ class Friction(Effect):
         # the state depends on every shape parameter, so design()'s cache (per shape) holds it
         wx, wp, rate = shape["slip_strain"], shape["slip_kPa"] * 1e3, shape["relax_per_s"]
         slip = ctx.x / wx + (ctx.pressure_sign() * ctx.P / wp if wp > 0 else 0.0)
-        z = play(slip, 1.0, ctx.starts, ctx.t, rate)
+        z = play(slip, 1.0, ctx.starts, ctx.t, rate, smooth=shape.get("smooth", 0.0) == 1.0)
         return np.zeros(ctx.n), _gate(ctx, -np.column_stack([z, ctx.P_MPa * z]))
 
     def step(self, v, state, s: Sample) -> float:
@@ -551,8 +590,11 @@ class Friction(Effect):
             sign_now = -math.copysign(1.0, 3 * s.L**2 - b2)
             sign_prev = -math.copysign(1.0, 3 * s.L_prev**2 - b2)
             slip += (sign_now * s.P - sign_prev * s.P_prev) / (v["slip_kPa"] * 1e3)
-        z = state[0] * math.exp(-v["relax_per_s"] * s.dt) + slip
-        state[0] = min(1.0, max(-1.0, z))
+        z = state[0] * math.exp(-v["relax_per_s"] * s.dt)
+        if v.get("smooth", 0.0) == 1.0:
+            state[0] = dahl_step(z, slip)
+        else:
+            state[0] = min(1.0, max(-1.0, z + slip))
         force = -(v["f0_N"] + v["f1_N_per_MPa"] * s.P / 1e6) * state[0]
         return force if s.engaged else 0.0
 

@@ -68,12 +68,13 @@ typedef struct {
 // effects.LIBRARY without force_offset, parameters in its order (the step functions index them).
 static const EffectSpec kEffects[NEFFECT] = {
     {"friction",
-     5,
+     6,
      {{"f0_N", 0.0, 100.0},
       {"f1_N_per_MPa", 0.0, 300.0},
       {"slip_strain", 5e-4, 0.05},
       {"slip_kPa", 0.0, 1e4},
-      {"relax_per_s", 0.0, 10.0, 1, 0.0}},
+      {"relax_per_s", 0.0, 10.0, 1, 0.0},
+      {"smooth", 0.0, 1.0, 1, 0.0, 1}},
      1},
     {"viscoelasticity",
      5,
@@ -441,8 +442,16 @@ typedef struct {
 
 static double fx_clip1(double z) { return z > 1.0 ? 1.0 : (z < -1.0 ? -1.0 : z); }
 
-// Friction.step: one play operator on the slip that the strain and the pressure both drive,
-// relaxing at relax_per_s; slip_kPa 0: pressure slides nothing.
+// effects.dahl_step: Dahl's state after a slip du (in widths), dz/du = 1 - z sign(du) integrated
+// exactly over the step.
+static double fx_dahl(double z, double du) {
+  if (du > 0.0) return 1.0 - (1.0 - z) * exp(-du);
+  if (du < 0.0) return -1.0 + (1.0 + z) * exp(du);
+  return z;
+}
+
+// Friction.step: one play operator (smooth 1: Dahl's) on the slip that the strain and the
+// pressure both drive, relaxing at relax_per_s; slip_kPa 0: pressure slides nothing.
 static double friction_step(const EffectsMuscle* k, const double* v, double* z, const EffectSample* s) {
   if (s->first) {
     z[0] = 0.0;
@@ -453,7 +462,8 @@ static double friction_step(const EffectsMuscle* k, const double* v, double* z, 
     double sign_prev = -copysign(1.0, 3 * libm_pow(s->L_prev, 2) - k->thread_sq_pow);
     slip += (sign_now * s->P - sign_prev * s->P_prev) / (v[3] * 1e3);
   }
-  z[0] = fx_clip1(z[0] * exp(-v[4] * s->dt) + slip);
+  double kept = z[0] * exp(-v[4] * s->dt);
+  z[0] = v[5] == 1.0 ? fx_dahl(kept, slip) : fx_clip1(kept + slip);
   double force = -(v[0] + v[1] * s->P / 1e6) * z[0];
   return s->engaged ? force : 0.0;
 }
