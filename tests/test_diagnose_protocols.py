@@ -800,7 +800,7 @@ def test_a_drift_is_named_on_its_own_clock_and_course(seed, family, clock, cours
         ("d03", 1),
     ],
 )
-def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_of_its_own_time_constant(case_id, variant):
+def test_a_warm_up_of_tens_of_seconds_is_fitted_as_a_drift_that_follows_its_course(case_id, variant):
     # the outside reviewer's warm-up (bench/bench_diagnose_forms.py, written without reading the
     # library): F + A (1 - exp(-t / T)), T 15-40 s. With the drift's time constant held at 30 s or
     # more, three of these four were answered viscoelasticity at p 0.83-0.90, its slow branch

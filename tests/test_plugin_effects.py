@@ -255,7 +255,7 @@ def test_bladder_branches_relax_a_pressure_step_at_a_fixed_length():
 
 
 @pytest.mark.parametrize("clock, course", [(1.0, 1.0), (1.0, -1.0), (0.0, -1.0), (1.0, 0.0), (0.0, 0.0)])
-def test_drift_on_the_pressure_clock_or_accelerating_replays_as_the_reference(bench, clock, course):
+def test_drift_on_every_clock_and_course_replays_as_the_reference(bench, clock, course):
     recording, muscle = bench
     effects = [("drift", dict(VALUES["drift"], clock=clock, course=course))]
     reference = stepwise(muscle, effects, recording)
