@@ -562,8 +562,8 @@ class Friction(Effect):
     def shape_range(self, ctx, p):
         if p.key == "relax_per_s":
             return self.RELAX_FLOOR_PER_S, p.grid, p.hi
-        if p.discrete:
-            return p.lo, p.grid, p.hi
+        if p.discrete:  # a mode has no width for a noise floor to raise
+            return super().shape_range(ctx, p)
         # a pre-sliding width below a few sensor-noise steps would let the play operator follow
         # the measured noise (and "explain" the noise the model inherits from its inputs)
         if p.key == "slip_kPa":
