@@ -173,13 +173,24 @@ def test_diagnose_arm_refuses_one_command_column_in_bar(tmp_path, capsys):
         np.full(240, 5.0),  # a held bias pressure below the dead band
         10 + 10 * np.sin(np.arange(240) / 10),  # a muscle driven little (0 .. 20 kPa): no decade fits
         (250 + 200 * np.sin(np.arange(240) / 10)) / 6.894757,  # psi: 6.9 x, left to the replay
+        # an idle muscle whose pressure is logged as its command: a regulator's 0-4 kPa jitter,
+        # which read in bar (0-400 kPa) would sit among the others' 50-450 kPa
+        np.abs(np.random.default_rng(3).normal(0.0, 1.2, 240)),
     ],
-    ids=["idle", "bias", "little", "psi"],
+    ids=["idle", "bias", "little", "psi", "jitter"],
 )
 def test_a_little_used_muscle_is_not_taken_for_a_unit_mix_up(column):
     commands = _commands()
     commands[:, 2] = column
     assert check_against_model(_recording(commands), [MAX_PA] * 3, BASE, REACH) == []
+
+
+def test_a_column_in_bar_with_a_transducers_noise_is_still_refused():
+    """The jitter test reads noise about zero, not a signal in bar with a little noise on it."""
+    commands = _commands()
+    commands[:, 1] = commands[:, 1] / 100.0 + np.random.default_rng(4).normal(0.0, 0.02, 240)
+    with pytest.raises(ArmRecordingError, match=r"column 'p_s1m2_kPa'.*was it bar\?"):
+        check_against_model(_recording(commands), [MAX_PA] * 3, BASE, REACH)
 
 
 def test_every_column_in_mpa_still_gets_the_whole_recording_message():

@@ -105,6 +105,11 @@ MIN_COMMAND_SHARE = 0.05
 #: bar and MPa under 'kPa' are 100 x and 1000 x off, a muscle merely driven less than the others
 #: rarely within 3 x of them once scaled by such a factor.
 COLUMN_UNIT_FACTOR = 3.0
+#: A command column whose sample-to-sample changes are at least this share of what white noise of
+#: its spread makes (RMS of the differences over sqrt(2) x its standard deviation: 1 for white
+#: noise, near 0 for ramps, steps and sines sampled at 30-200 Hz) is a regulator's jitter about
+#: an idle muscle's zero, not commands written in another unit
+JITTER_SHARE = 0.5
 #: A tip whose every coordinate spans less than this (m) while the commands change never moved:
 #: a motion tracker's noise alone spans tens of micrometres
 FROZEN_TIP_M = 1e-6
@@ -370,13 +375,27 @@ def units_putting(number: float, low_Pa: float, high_Pa: float) -> list[str]:
     return [u for u in PRESSURE if low_Pa <= number * PRESSURE[u] <= high_Pa]
 
 
+def _jitter_share(p: np.ndarray) -> float:
+    """How much of a column's variation changes from one sample to the next: the RMS of its
+    first differences over what white noise of the same standard deviation gives (sqrt(2) x
+    it). About 1 for noise, near 0 for a commanded signal (ramps, steps, sines); NaN ignored."""
+    p = np.asarray(p, float)
+    p = p[np.isfinite(p)]
+    spread = float(np.std(p)) if len(p) > 2 else 0.0
+    if spread == 0.0:
+        return 0.0
+    return float(np.sqrt(np.mean(np.diff(p) ** 2)) / (math.sqrt(2.0) * spread))
+
+
 def _check_small_columns(rec: ArmRecording, max_Pa: np.ndarray, columns: list[str], src: str) -> None:
     """Refuse one muscle's command column written in a larger unit than its header's (bar or MPa
     under 'kPa') while the other columns are right: the whole-recording test of
     :data:`MIN_COMMAND_SHARE` only sees the largest command of all muscles.
 
     A column is refused only when it looks like a unit mix-up, not a muscle little used: its
-    commands change (a column of 0 is an idle muscle, a constant one a held bias pressure), never
+    commands change (a column of 0 is an idle muscle, a constant one a held bias pressure), as a
+    signal does, not from sample to sample as noise does (:data:`JITTER_SHARE`: an idle muscle's
+    regulator jitters by a few kPa about zero, which 'bar' would put among the others), never
     reach :data:`MIN_COMMAND_SHARE` of its model's highest pressure, and another pressure unit puts
     its largest value within :data:`COLUMN_UNIT_FACTOR` of what the columns that do reach it
     command (their median largest command)."""
@@ -391,6 +410,8 @@ def _check_small_columns(rec: ArmRecording, max_Pa: np.ndarray, columns: list[st
     for i, (m, name) in enumerate(zip(rec.muscles, columns)):
         p, top = rec.command_Pa[:, i], float(tops[i])
         if not math.isfinite(top) or not 0 < highest[i] < MIN_COMMAND_SHARE * top or np.ptp(p) == 0:
+            continue
+        if _jitter_share(p) >= JITTER_SHARE:  # an idle muscle's regulator noise, not a signal
             continue
         base, unit = split_unit(name)
         if unit not in PRESSURE:  # a column whose unit cannot be read back: no unit to offer
