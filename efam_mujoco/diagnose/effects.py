@@ -401,10 +401,6 @@ class Effect:
         """The parameters that shape the force non-linearly (searched over their grid)."""
         return tuple(p for p in self.params if p.shape)
 
-    def default_shape(self) -> dict[str, float]:
-        """The middle grid value of every shape parameter: the starting point of the search."""
-        return {p.key: p.grid[len(p.grid) // 2] for p in self.shapes}
-
     def shape_range(self, ctx: Context, p: Param) -> tuple[float, tuple[float, ...], float]:
         """(lowest value, grid, highest value) of a shape parameter for these recordings."""
         return p.lo, p.grid, p.hi
