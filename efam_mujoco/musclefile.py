@@ -15,7 +15,8 @@ A muscle file holds what a user measured or identified, with units in its keys::
 ``geometry`` (paper Table 2) derives the constants through Eqs. 3-8; ``constants`` gives them
 directly (rest_length, rest_diameter, theta_rest, bladder_volume) and overrides what geometry
 derives, which is how a calibration that re-estimated the braid angle from blocked forces
-(Sec. 4.4) is stored. Any key may use another unit of the same quantity (``rest_length_cm``).
+(Sec. 4.4) is stored. The resting length is measured, not re-estimated: given in both blocks,
+the two must agree. Any key may use another unit of the same quantity (``rest_length_cm``).
 """
 
 from __future__ import annotations
@@ -405,6 +406,20 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             value = _quantity(given, base, quantity, where, default=constants.get(key))
             if value is None:
                 raise MuscleFileError(f"{where}: missing key '{key}' (or a 'geometry' block)")
+            derived = constants.get(key)
+            if (
+                key == "rest_length_m"
+                and derived is not None
+                and not math.isclose(value, derived, rel_tol=1e-6)
+            ):
+                # the resting length is measured, not calibrated: the geometry derived the braid
+                # angle and the bladder volume from its own, so another one here contradicts them
+                raise MuscleFileError(
+                    f"{where}: rest_length = {value:.6g} m contradicts the 'geometry' block's "
+                    f"{derived:.6g} m, from which the braid angle and bladder volume were derived: give "
+                    "the resting length once (the constants block may override the braid angle, the "
+                    "diameter and the bladder volume that a calibration re-estimates)"
+                )
             constants[key] = value
         theta = _quantity(given, "theta_rest", "angle", where, default=None)
         if theta is not None:

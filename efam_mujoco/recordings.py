@@ -834,7 +834,14 @@ def check_plausibility(
         expected = float(np.ptp(model)) if model.size else 0.0
         spread = float(np.ptp(F))
         model_ok = not (lengths_wrong or pressures_wrong)  # the model read where the muscle was
-        if not big.any() and model_ok:  # a force beyond the muscle's reach is 'force-range' already
+        dead = (
+            spread == 0.0
+            # two or three distinct values say 'dead' only over a real recording: any two rows hold two
+            or (len(F) >= MIN_SAMPLES and len(np.unique(F[: min(len(F), 100000)])) <= 2)
+            or (expected > 5.0 and spread < 0.02 * expected and model_ok)
+        )
+        # a dead channel has no scale: no unit puts a constant on the model (it was offered 'force_lbf')
+        if not big.any() and model_ok and not dead:  # a force beyond the muscle's reach is 'force-range' already
             with np.errstate(all="ignore"):  # the same pressures at the resting length
                 blocked = np.asarray(free.push(Pc, np.full_like(Pc, rest)), dtype=float)
             scale = _force_scale(Fc, aligned, blocked)
@@ -848,12 +855,9 @@ def check_plausibility(
                     f"{FORCE_SCALE_REGION:.0%} of its blocked force): is the column's "
                     f"unit right, or is --muscle not the muscle that was tested?{hint}"
                 )))  # fmt: skip
-        if (
-            spread == 0.0
-            # two or three distinct values say 'dead' only over a real recording: any two rows hold two
-            or (len(F) >= MIN_SAMPLES and len(np.unique(F[: min(len(F), 100000)])) <= 2)
-            or (expected > 5.0 and spread < 0.02 * expected and model_ok)
-        ):
+        # ... and where the model expects no change either (one row repeated, every pressure in the
+        # dead band) nothing says the load cell is dead: 'nothing-varies' or the model's range speak
+        if dead and expected > 0.0:
             fits = unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
             hint = f" (or the numbers fit '{fits}')" if fits and len(np.unique(F[:1000])) > 2 else ""
             findings.append(Finding("force-dead", (

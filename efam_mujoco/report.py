@@ -16,7 +16,7 @@ from .files import (
     strict_json,
     write_text_atomic,
 )
-from .muscle import Muscle
+from .muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle
 from .musclefile import load_muscle
 from .stress import LAW_NAMES
 
@@ -192,6 +192,14 @@ def run_demo(args) -> int:
     whole: it holds only what the demo writes)."""
     check_replaceable_folder(args.out, "--out")  # before the work, not after it
     muscle = load_muscle(args.muscle, args.stress)
+    if muscle.theta_rest_deg >= NEUTRAL_BRAID_ANGLE_DEG:
+        # the figure is the paper's Fig. 6, 0-105 % extension: a contractile muscle only shortens
+        # (before: the table printed, then the rig refused 'stroke_forces: lengths_m: ...')
+        raise ValueError(
+            f"{args.muscle}: the muscle is contractile (braid angle {muscle.theta_rest_deg:.4g} deg, above the "
+            f"neutral {NEUTRAL_BRAID_ANGLE_DEG:.2f} deg): efam demo draws an extensile muscle's force over "
+            "0-105 % extension; `efam muscle` gives this one's table"
+        )
     rows = compare(muscle)
     doc = report_dict(muscle, rows)
     text = strict_json(doc)

@@ -851,3 +851,17 @@ def test_other_commands_warn_of_a_small_pressure_once_in_the_flags_unit(folder, 
     _, _, err = run_cli(argv, folder, capsys)
     assert err.count("is below 1 kPa") == 1 and f"warning: {flag} is below 1 kPa" in err, err
     assert "Pa is below 1000 Pa" not in err and "did you mean" not in err, err
+
+
+def test_demo_refuses_a_contractile_muscle_before_printing(folder, capsys):
+    """Before: the table was printed, then the figure's stroke failed with the rig's internal
+    words ('stroke_forces: lengths_m: 0.221 m is outside [-0.0104231, 0.209928] m')."""
+    from importlib import resources
+
+    doc = json.loads(resources.files("efam_mujoco.presets").joinpath("fam1.json").read_text())
+    doc["constants"] = {"theta_rest_deg": 60.0}
+    (folder / "mckibben.json").write_text(json.dumps(doc))
+    run_bad(["demo", "--muscle", "mckibben.json", "--out", "d"], folder, capsys,
+            r"mckibben\.json: the muscle is contractile \(braid angle 60 deg, above the neutral 35\.26 deg\)",
+            r"`efam muscle` gives this one's table")  # fmt: skip
+    assert "stroke_forces" not in capsys.readouterr().err

@@ -477,8 +477,12 @@ def test_arm_spec_refuses_text_flags_and_sizes_no_bench_arm_has():
     ]:
         with pytest.raises(ValueError, match=words):
             arm.ArmSpec(sections=(section,), **kw)
+    # kPa written as Pa: refused, not only warned of (before, an arm whose muscles can never
+    # inflate was built, and diagnose-arm replayed every command as the arm at rest)
     with pytest.warns(UserWarning, match=r"max_pressure_Pa: pressure 517\.1 Pa is below 1000 Pa"):
-        arm.ArmSpec(sections=(section,), max_pressure_Pa=517.1)
+        with pytest.raises(ValueError, match=r"max_pressure_Pa = 517\.1 Pa is within every muscle's dead band "
+                           r"\(the lowest, FAM1's, ends at 33\.\d+ kPa\).*is it in kPa\?"):  # fmt: skip
+            arm.ArmSpec(sections=(section,), max_pressure_Pa=517.1)
     muscle = load_muscle("FAM1")
     with pytest.raises(ValueError, match=r"radius_m = 18\.2 is outside 0\.001 \.\. 0\.5 m"):
         arm.SectionSpec(muscles=(muscle,) * 3, radius_m=18.2)
@@ -693,3 +697,36 @@ def test_a_rated_pressure_below_the_dead_band_is_refused(tmp_path, capsys):
     (tmp_path / "r.csv").write_bytes((examples / "fam1_p45psi.csv").read_bytes())
     run_bad(["diagnose", "r.csv", "--muscle", "FAM1", "--rated-pressure-kPa", "0.5"], tmp_path, capsys,
             r"--rated-pressure-kPa 0\.5 is at or below the muscle's dead band 33\.62 kPa")  # fmt: skip
+
+
+def test_write_models_refuses_arm_flags_it_would_ignore(tmp_path, capsys):
+    """Before: `efam arm --write-models --sections 3 --radius-mm 100` exited 0 and wrote the
+    package's preset models, byte for byte, without a word about the flags."""
+    run_bad(["arm", "--write-models", "--models-dir", "m", "--sections", "3", "--radius-mm", "100"], tmp_path,
+            capsys, r"--write-models regenerates the package's preset models .* --sections, --radius-mm would "
+            r"be ignored: drop them, or write this arm with --xml FILE")  # fmt: skip
+    assert not (tmp_path / "m").exists()
+    (tmp_path / "data.csv").write_text(
+        "time_s\n0\n"
+    )  # before: 'cannot write data.csv/arm_1x3.xml (File exists)'
+    run_bad(["arm", "--write-models", "--models-dir", "data.csv"], tmp_path, capsys,
+            r"--models-dir data\.csv: is a file, not a folder")  # fmt: skip
+
+
+def test_a_constant_force_column_is_called_dead_without_a_unit_hint(tmp_path, capsys):
+    """Before: a load cell reading 40 N in every row was also offered "the numbers fit
+    'force_lbf'" (no unit puts a constant on the model), and a file of one row repeated was told
+    "the model expects a range of 0 N: a dead or disconnected load cell?"."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    lines = (examples / "fam1_p45psi.csv").read_text().splitlines()
+    k = next(i for i, c in enumerate(lines[0].split(",")) if c.startswith(("force", "tension")))
+    rows = [",".join(c if i != k else "40.0" for i, c in enumerate(line.split(","))) for line in lines[1:]]
+    (tmp_path / "flat.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    err = run_bad(["calibrate", "flat.csv", "--muscle", "FAM1", "--out", "m.json"], tmp_path, capsys,
+                  r"flat\.csv: column '\w+': the force hardly changes \(range 0 N", r"dead or disconnected load cell")  # fmt: skip
+    assert "force_lbf" not in err and "[force-unit]" not in err, err
+    rows = [f"{0.01 * i:.2f},0.17018,45,160.0" for i in range(600)]
+    (tmp_path / "one.csv").write_text("time_s,length_m,pressure_psi,force_N\n" + "\n".join(rows) + "\n")
+    err = run_bad(["calibrate", "one.csv", "--muscle", "FAM1", "--out", "m.json"], tmp_path, capsys,
+                  r"one\.csv: columns 'length_m' and 'pressure_psi' are both constant: nothing was tested")  # fmt: skip
+    assert "expects a range of 0 N" not in err, err

@@ -163,6 +163,15 @@ CASES = [
     ),  # fmt: skip
     ("sleeve angle 95 deg", edited(geometry__sleeve_angle_ref_deg=95.0), [r"sleeve_angle_ref"]),
     ("theta 0 in constants", {**fam1(), "constants": {"theta_rest_deg": 0.0}}, [r"theta_rest"]),
+    # the geometry derived the braid angle and the bladder from its own resting length
+    (
+        "rest length given twice, differently",
+        {**fam1(), "constants": {"rest_length_m": 0.2}},
+        [
+            r"constants: rest_length = 0\.2 m contradicts the 'geometry' block's 0\.17018 m",
+            r"give the resting length once",
+        ],
+    ),
     ("theta 90 deg", {**fam1(), "constants": {"theta_rest_deg": 90.0}}, [r"theta_rest|braid"]),
     # each constant in range, together nothing that could be built
     (

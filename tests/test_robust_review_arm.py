@@ -6,6 +6,7 @@ traceback, never accepted in silence; legitimate input beside each still accepte
 from __future__ import annotations
 
 import json
+import re
 import tracemalloc
 
 import numpy as np
@@ -104,10 +105,14 @@ def test_an_unstable_time_step_names_the_spec_file(tmp_path, capsys):
     doc["sections"][0]["plate_mass_kg"] = 50  # grams written as kg: the fixed 4 ms step diverges
     path = _write(tmp_path / "heavy.json", doc)
     with pytest.raises(
-        ArmModelError, match=r"heavy\.json: timestep_s = 4 ms is unstable for this arm: "
+        ArmModelError, match=r"heavy\.json: timestep_s = 4 ms is unstable for this arm"
     ) as err:
         load_arm_model(path)
     assert "arm: timestep_s" not in str(err.value)
+    # ... saying which test failed: the limit it quotes (9.11 ms) is above 4 ms, each mode alone
+    assert re.search(
+        r"each mode alone allows up to [\d.]+ ms, but the step map of the modes together", str(err.value)
+    )
     (tmp_path / "rec.csv").write_text(HEAD + "\n0,100,100,100,0,0,0.2\n0.1,100,100,100,0,0,0.2\n")
     run_bad(["diagnose-arm", "--model", "heavy.json", "--threads", "1", "rec.csv"], tmp_path, capsys,
             r"error: heavy\.json: timestep_s = 4 ms is unstable")  # fmt: skip
@@ -191,6 +196,40 @@ def test_a_column_in_bar_with_a_transducers_noise_is_still_refused():
     commands[:, 1] = commands[:, 1] / 100.0 + np.random.default_rng(4).normal(0.0, 0.02, 240)
     with pytest.raises(ArmRecordingError, match=r"column 'p_s1m2_kPa'.*was it bar\?"):
         check_against_model(_recording(commands), [MAX_PA] * 3, BASE, REACH)
+
+
+def test_an_arm_model_whose_tip_is_held_is_refused(tmp_path):
+    """Before: a spec with hold_tip true (a blocked-force fixture) was replayed with its tip
+    welded in place, and a tip that moved 120 mm came back 'none ... UNEXPLAINED'."""
+    held = arm.ArmSpec(sections=(arm.paper_section(disks=2),), timestep_s=DT, hold_tip=True)
+    model = save_spec(tmp_path / "arm.json", held)
+    with pytest.raises(ArmModelError, match=r"arm\.json: body '\w+' is welded to 'base' \(equality 'hold_tip'\): "
+                       r"a held tip cannot follow a recording"):  # fmt: skip
+        load_arm_model(model)
+
+
+@pytest.mark.parametrize("name", ["arm.csv", "arm.yaml", "arm"])
+def test_an_arm_model_of_another_kind_is_named_as_such(tmp_path, name):
+    """Before: MuJoCo's parser said 'not a usable MJCF: could not find decoder for resource'."""
+    (tmp_path / name).write_text("time_s,p_s1m1_kPa\n0,0\n")
+    with pytest.raises(
+        ArmModelError, match=r"an arm model is a spec file \(\.json.* or an MJCF \(\.xml\), not a"
+    ):
+        load_arm_model(tmp_path / name)
+
+
+def test_diagnose_arm_refuses_a_spec_whose_top_pressure_is_within_the_dead_band(tmp_path, capsys):
+    """Before: max_pressure_Pa 517.1 (kPa written as Pa) was only warned of; the recording's
+    commands were then blamed ('was it Pa?'), and renamed to Pa they replayed as an arm at rest."""
+    doc = spec_to_dict(arm.ArmSpec(sections=(arm.paper_section(disks=2),), timestep_s=DT))
+    doc["max_pressure_Pa"] = 517.1
+    (tmp_path / "arm.json").write_text(json.dumps(doc))
+    t = np.arange(40) / 40.0
+    rows = [f"{x:.4g},{100 * x:.4g},0,0,0,0,0.2" for x in t]
+    (tmp_path / "rec.csv").write_text(HEAD + "\n" + "\n".join(rows) + "\n")
+    run_bad(["diagnose-arm", "--model", "arm.json", "--threads", "1", "rec.csv"], tmp_path, capsys,
+            r"arm\.json: arm: max_pressure_Pa = 517\.1 Pa is within every muscle's dead band",
+            r"is it in kPa\? \(the key is in Pa\)")  # fmt: skip
 
 
 def test_every_column_in_mpa_still_gets_the_whole_recording_message():

@@ -267,8 +267,31 @@ def arm_from_args(args) -> ArmSpec:
     )
 
 
+def _flags_given(args) -> list[str]:
+    """The arm's flags this invocation sets to something else than their defaults."""
+    parser = argparse.ArgumentParser(add_help=False)
+    _add_arguments(parser)
+    flags = {a.dest: a.option_strings[0] for a in parser._actions}
+    defaults = vars(parser.parse_args([]))
+    return [
+        flags[k]
+        for k, v in defaults.items()
+        if k not in ("write_models", "models_dir") and getattr(args, k) != v
+    ]
+
+
 def _run(args) -> int:
     if args.write_models:
+        # the package's fixed models come from the builder's presets: another arm's flags beside
+        # them were dropped without a word (the models written were the presets all the same)
+        given = _flags_given(args)
+        if given:
+            raise ValueError(
+                f"--write-models regenerates the package's preset models (models/arm_*.xml) and takes no arm "
+                f"flags; {', '.join(given)} would be ignored: drop them, or write this arm with --xml FILE"
+            )
+        if args.models_dir.exists() and not args.models_dir.is_dir():
+            raise ValueError(f"--models-dir {args.models_dir}: is a file, not a folder")
         for path in write_models(args.models_dir):
             print(path)
         return 0

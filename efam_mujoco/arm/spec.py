@@ -235,6 +235,15 @@ class ArmSpec:
             if not isinstance(getattr(self, key), (bool, np.bool_)):
                 raise ValueError(f"arm: {key} must be True or False, got {getattr(self, key)!r}")
         check_pressure_Pa(self.max_pressure_Pa, "arm: max_pressure_Pa")
+        # a control range that ends inside every muscle's dead band moves nothing: every command
+        # replays as the arm at rest (517.1 under max_pressure_Pa, kPa written as Pa)
+        lowest = min((m for s in self.sections for m in s.muscles), key=lambda m: m.deadband_Pa)
+        if self.max_pressure_Pa <= lowest.deadband_Pa:
+            raise ValueError(
+                f"arm: max_pressure_Pa = {self.max_pressure_Pa:.10g} Pa is within every muscle's dead band "
+                f"(the lowest, {lowest.name or 'a muscle'}'s, ends at {lowest.deadband_Pa / 1e3:.4g} kPa): no command could "
+                "inflate a muscle; is it in kPa? (the key is in Pa)"
+            )
 
     @property
     def rest_length_m(self) -> float:

@@ -194,6 +194,12 @@ def load_arm_model(path: str | Path) -> mujoco.MjSpec:
             text = str(err)
             text = text[len("arm: ") :] if text.startswith("arm: ") else text
             raise ArmModelError(text if text.startswith(f"{path}:") else f"{path}: {text}") from None
+    elif path.suffix.lower() not in (".xml", ".mjcf"):
+        # MuJoCo's own words for a CSV or a YAML ('could not find decoder for resource') say nothing
+        raise ArmModelError(
+            f"{path}: an arm model is a spec file (.json, `armdiag.save_spec`) or an MJCF (.xml), "
+            f"not a '{path.suffix or 'suffix-less'}' file"
+        )
     else:
         try:
             spec = mujoco.MjSpec.from_file(str(path))
@@ -212,6 +218,16 @@ def check_arm_model(spec: mujoco.MjSpec, label: str) -> None:
         raise ArmModelError(f"{label}: no sensor named 'tip_pos' (framepos of the tip)")
     if not spec.actuators:
         raise ArmModelError(f"{label}: no actuators (one per muscle, ctrl = gauge pressure in Pa)")
+    for eq in spec.equalities:
+        # a body welded to the mount (the builder's hold_tip, a blocked-force fixture) holds the
+        # tip still: its replay cannot follow a recorded tip, and every mismatch would be 'unexplained'
+        if eq.type == mujoco.mjtEq.mjEQ_WELD and eq.active and {"base", "world"} & {eq.name1, eq.name2}:
+            other = eq.name1 if eq.name2 in ("base", "world") else eq.name2
+            raise ArmModelError(
+                f"{label}: body '{other}' is welded to '{eq.name2 if other == eq.name1 else eq.name1}'"
+                f"{f' (equality {eq.name!r})' if eq.name else ''}: a held tip cannot follow a recording "
+                "(hold_tip is for blocked-force checks; set it to false)"
+            )
 
 
 def model_limits(spec: mujoco.MjSpec) -> dict:
