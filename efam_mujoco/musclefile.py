@@ -426,6 +426,14 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             constants["theta_rest_deg"] = theta * 180.0 / 3.141592653589793
         if "theta_rest_deg" not in constants:
             raise MuscleFileError(f"{where}: missing key 'theta_rest_deg' (or a 'geometry' block)")
+        if constants["rest_diameter_m"] >= constants["rest_length_m"]:
+            # Eqs. 3-8 treat the braid as a long cylinder; a muscle wider than long loaded, then
+            # the rig could not settle it and blamed a load that was never given
+            raise MuscleFileError(
+                f"{label}: a resting diameter of {constants['rest_diameter_m']:.6g} m is not below the resting "
+                f"length {constants['rest_length_m']:.6g} m: a fluidic muscle is a braided tube longer than it is "
+                "wide (is one of them in another unit?)"
+            )
         deadband = _quantity(doc, "deadband", "pressure", label)
         if deadband < 0:
             raise MuscleFileError(f"{label}: deadband must not be negative, got {deadband:g} Pa")

@@ -157,7 +157,7 @@ def _pressures(args) -> tuple[float, ...]:
     for p in args.pressures_kPa:
         if not (np.isfinite(p) and 0 <= p * 1e3 <= high):
             raise ValueError(
-                f"--pressures-kPa: {p:g} kPa is outside the rig's control range 0 .. {high / 1e3:g} kPa "
+                f"--pressures-kPa: {p:.10g} kPa is outside the rig's control range 0 .. {high / 1e3:g} kPa "
                 "(MuJoCo would clamp it, the analytic column would not)"
             )
     if len(args.pressures_kPa) > MAX_PRESSURES:

@@ -100,6 +100,8 @@ USAGE = [
         r"--pressures-kPa: 2000 kPa is outside the rig's control range",
     ),
     (["muscle", "FAM1", "--pressures-kPa", "-5"], r"--pressures-kPa: -5 kPa is outside"),
+    # the value as typed, not rounded into the range (was '1000 kPa is outside ... 0 .. 1000 kPa')
+    (["muscle", "FAM1", "--pressures-kPa", "1000.0001"], r"--pressures-kPa: 1000\.0001 kPa is outside"),
     (["muscle", "FAM1", "--pressures-kPa", "nan"], r"--pressures-kPa: takes a plain decimal number.*'nan'"),
     (["muscle", "FAM1", "--pressures-kPa", "inf"], r"--pressures-kPa: takes a plain decimal number.*'inf'"),
     (["muscle", "FAM1", "--pressures-kPa", "1e300"], r"--pressures-kPa: 1e\+300 kPa"),

@@ -326,6 +326,11 @@ def test_suite_list_honours_domain_and_task(tmp_path, capsys):
     code, out, _ = run_cli(["suite", "--list", "--domain", "arm"], tmp_path, capsys)
     assert code == 0 and out.strip() and all(line.startswith("arm-") for line in out.strip().splitlines())
     run_bad(["suite", "--list", "--domain", "foo", "--task", "bar"], tmp_path, capsys, r"no such task")
+    # only the flags given (was '--list --domain foo --task None')
+    err = run_bad(
+        ["suite", "--list", "--domain", "foo"], tmp_path, capsys, r"--list --domain foo: no such task"
+    )
+    assert "None" not in err
 
 
 def test_real_muscles_held_near_their_full_contraction_pass_the_force_scale():

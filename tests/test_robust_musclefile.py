@@ -149,6 +149,12 @@ CASES = [
     ("diameter 1e200 cm", renamed("geometry", "rest_diameter_m", "rest_diameter_cm") | {}, []),
     ("negative length", edited(geometry__rest_length_m=-0.17), [r"'rest_length_m' = -0.17"]),
     ("zero diameter", edited(geometry__rest_diameter_m=0), [r"rest_diameter_m"]),
+    # loaded before, then the rig 'went unstable ... a load in the wrong unit' with no load given
+    (
+        "wider than long",
+        {**fam1(), "constants": {"rest_diameter_m": 2.0}},
+        [r"a resting diameter of 2 m is not below the resting length 0\.17018 m", r"longer than it is wide"],
+    ),
     ("tiny length", edited(geometry__rest_length_m=1e-9), [r"rest_length_m"]),
     ("deadband Pa labelled kPa", edited(deadband_kPa=33620.0), [r"deadband_kPa.*cannot be physical", r"Pa"]),
     ("negative deadband", edited(deadband_kPa=-5.0), [r"deadband"]),

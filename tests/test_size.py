@@ -300,6 +300,11 @@ def test_cli_infeasible_exits_1_with_relaxation(capsys):
         (["--stroke", "0.5", "--force", "10", "--pressure", "-5"], "--pressure must be in (0, 1000] kPa"),
         (["--stroke", "0.5", "--force", "10", "--pressure", "nan"], "--pressure"),
         (["--stroke", "0.5", "--force", "10", "--pressure", "400", "--max-diameter", "0"], "mm"),
+        # metres typed into the mm flag (was accepted: 'raise --max-diameter from 0.0287 to 12.3 mm')
+        (
+            ["--stroke", "0.5", "--force", "10", "--pressure", "300", "--max-diameter", "0.0287"],
+            "--max-diameter must be in [1, 1000] mm, got 0.0287 (the flag is in mm",
+        ),
         (
             ["--stroke", "0.5", "--force", "10", "--pressure", "400", "--bundle", "2"],
             "--bundle needs at least 3",

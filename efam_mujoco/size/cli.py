@@ -79,7 +79,9 @@ def register_cli(subparsers) -> None:
                    help="pressure budget, gauge kPa (required)")  # fmt: skip
     p.add_argument("--length", metavar="m", type=_number("--length", "m", 0.005, 5.0), default=None,
                    help="resting length, m (default: the shortest the catalogue's aspect-ratio rule allows)")  # fmt: skip
-    p.add_argument("--max-diameter", metavar="mm", type=_number("--max-diameter", "mm", 0.0, 1000.0), default=None,
+    p.add_argument("--max-diameter", metavar="mm", type=_number("--max-diameter", "mm", 1.0, 1000.0, low_open=False,
+                   hint=" (the flag is in mm: a muscle under 1 mm wide is no muscle; 28.7 mm is written 28.7, "
+                   "not 0.0287 in metres)"), default=None,
                    help="largest resting diameter, mm (default: no limit)")  # fmt: skip
     p.add_argument("--blocked-force", metavar="N", type=_number("--blocked-force", "N", 0.0, 1e5), default=None,
                    help="also require this push at the resting length, N (default: none)")  # fmt: skip

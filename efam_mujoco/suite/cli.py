@@ -107,9 +107,10 @@ def _run(args) -> int:
     if args.list:  # --domain/--task narrow the list (they were ignored without a word)
         shown = [(d, t) for d, t in ALL_TASKS if args.domain in (None, d) and args.task in (None, t)]
         if not shown:
-            raise ValueError(
-                f"--list --domain {args.domain} --task {args.task}: no such task; efam suite --list shows them all"
+            given = " ".join(
+                f"--{k} {v}" for k, v in (("domain", args.domain), ("task", args.task)) if v is not None
             )
+            raise ValueError(f"--list {given}: no such task; efam suite --list shows them all")
         for domain, task in shown:
             tag = "benchmarking" if (domain, task) in BENCHMARKING else "extra"
             print(f"{domain}-{task}  ({tag})")
