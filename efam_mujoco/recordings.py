@@ -840,10 +840,9 @@ def check_plausibility(
             or (len(F) >= MIN_SAMPLES and len(np.unique(F[: min(len(F), 100000)])) <= 2)
             or (expected > 5.0 and spread < 0.02 * expected and model_ok)
         )
-        # a dead channel has no scale: no unit puts a constant on the model (it was offered 'force_lbf')
-        if (
-            not big.any() and model_ok and not dead
-        ):  # a force beyond the muscle's reach is 'force-range' already
+        # a force beyond the muscle's reach is 'force-range' already; a dead channel has no scale:
+        # no unit puts a constant on the model (it was offered 'force_lbf')
+        if not big.any() and model_ok and not dead:
             with np.errstate(all="ignore"):  # the same pressures at the resting length
                 blocked = np.asarray(free.push(Pc, np.full_like(Pc, rest)), dtype=float)
             scale = _force_scale(Fc, aligned, blocked)
