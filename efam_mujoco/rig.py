@@ -403,10 +403,17 @@ def equilibrium_length(
                 mujoco.mj_step(model, data)
                 low, high = min(low, data.qpos[0]), max(high, data.qpos[0])
             if warned:
-                raise RuntimeError(
-                    f"the rig went unstable at {pressure_Pa:g} Pa under a load of {load_N:g} N (MuJoCo: "
-                    f"{warned[0]}): more than the muscle can hold, or a load in the wrong unit"
+                # with no load, a load is not the cause: the muscle's own constants are (a braid
+                # angle near 90 deg, a diameter far from its length: the probe's muscles blamed a load)
+                cause = (
+                    f"under a load of {load_N:g} N (MuJoCo: {warned[0]}): more than the muscle can hold, or a "
+                    "load in the wrong unit"
+                    if load_N
+                    else f"with no load (MuJoCo: {warned[0]}): the muscle's own constants give a force MuJoCo "
+                    f"cannot integrate (braid angle {muscle.theta_rest_deg:.4g} deg, resting diameter "
+                    f"{muscle.rest_diameter_m:.4g} m, length {muscle.rest_length_m:.4g} m: are they the muscle's?)"
                 )
+                raise RuntimeError(f"the rig went unstable at {pressure_Pa:g} Pa {cause}")
             if abs(data.qvel[0]) < tol_m_per_s and abs(data.qacc[0]) * 0.05 < tol_m_per_s:
                 break
             previous_mid, mid, swing = mid, 0.5 * (low + high), high - low

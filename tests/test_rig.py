@@ -1,5 +1,6 @@
 """The MuJoCo rigs against the analytic model (paper Eqs. 2 and 9)."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -110,3 +111,18 @@ def test_effects_that_are_not_name_parameter_pairs_are_refused_by_name(effects):
     # got 1)"), ('bogus',) said "too many values to unpack"
     with pytest.raises(ValueError, match=r"effects must be (a list of )?\(name, parameters\) pairs"):
         rig.stroke_forces(load_muscle("FAM1"), 3e5, [0.2], effects=effects)
+
+
+def test_a_rig_that_goes_unstable_with_no_load_blames_the_muscle_not_a_load():
+    """Before: a braid angle of 85.5 deg (a sleeve angle of 89 deg in the geometry) loaded, and
+    the free rig's divergence said 'under a load of 0 N: ... or a load in the wrong unit'."""
+    from dataclasses import replace
+
+    steep = replace(load_muscle("FAM1"), theta_rest_deg=85.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # MuJoCo's own warning, said again in the error
+        with pytest.raises(
+            RuntimeError, match=r"went unstable at 200000 Pa with no load .*braid angle 85\.5 deg"
+        ) as err:
+            rig.equilibrium_length(steep, 200e3)
+    assert "load in the wrong unit" not in str(err.value)
