@@ -310,13 +310,22 @@ def test_arm_disagreement_reasons_name_a_curled_reference():
 
     from efam_mujoco.arm import cli as arm_cli
 
-    spec = arm.ArmSpec(sections=(arm.paper_section(disks=4),), orientation="horizontal", payload_kg=5.0)
+    spec = arm.ArmSpec(sections=(arm.paper_section(),), orientation="horizontal", payload_kg=5.0)
     state = SimpleNamespace(sections=[SimpleNamespace(muscle_lengths_m=np.full(3, 0.26))])
     result = {"section_bend_deg": [267.5], "bend_mujoco_deg": 90.0, "tip_mujoco_m": [0.256, 0.0, 0.0686],
               "settled": True}  # fmt: skip
     reasons = arm_cli._disagreement_reasons(spec, [[200e3] * 3], state, result)
     assert "curled past a half turn (section 1 bent 268 deg, MuJoCo's whole arm 90 deg)" in reasons[0]
+    assert reasons[0].endswith("MuJoCo's arm settled into the stable one"), reasons[0]
     assert any(r.startswith("large deflection") for r in reasons), reasons
+    # a coarse MuJoCo arm is named first, and the reference no longer blamed alone: with 2 disks
+    # `efam arm --pressures-kPa 300 300 0` was 32.5 % off a reference 8 disks meet within 0.04 %
+    coarse = arm.ArmSpec(sections=(arm.paper_section(disks=2),), orientation="horizontal", payload_kg=5.0)
+    reasons = arm_cli._disagreement_reasons(coarse, [[200e3] * 3], state, result)
+    assert reasons[0].startswith(
+        "the MuJoCo arm is coarse (section 1 has 2 spacer disk(s), the default is 8)"
+    )
+    assert reasons[1].endswith("or the coarse MuJoCo arm cannot curl that far"), reasons
 
 
 def test_arm_refuses_sizes_beyond_its_cost_limit(tmp_path, capsys, monkeypatch):

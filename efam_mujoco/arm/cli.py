@@ -123,13 +123,28 @@ def equilibrium(arm: ArmSpec, pressures_Pa: Sequence[Sequence[float]], tip_force
 def _disagreement_reasons(arm: ArmSpec, pressures, state, result: dict) -> list[str]:
     """Why the MuJoCo arm and the continuum reference likely disagree (most telling first)."""
     reasons = []
+    coarse = [(j + 1, s.disks) for j, s in enumerate(arm.sections) if s.disks < DEFAULT_DISKS]
+    if coarse:
+        # first: with 2 disks a 279 deg curl is out of the MuJoCo arm's reach, and the reference,
+        # which 8 disks meet within 0.04 %, was the one blamed
+        j, d = coarse[0]
+        reasons.append(
+            f"the MuJoCo arm is coarse (section {j} has {d} spacer disk(s), the default is {DEFAULT_DISKS}): a "
+            "section of few rigid links cannot take a strong curl, and its error grows as the disks fall; "
+            "rerun with more --disks"
+        )
     curled = [(j + 1, b) for j, b in enumerate(result["section_bend_deg"]) if b > 180.0]
     if curled and result["bend_mujoco_deg"] < max(b for _, b in curled) - 45.0:
         j, b = curled[0]
         reasons.append(
             f"the continuum reference curled past a half turn (section {j} bent {b:.0f} deg, MuJoCo's "
             f"whole arm {result['bend_mujoco_deg']:.0f} deg): under a load this large its shooting can "
-            "converge to an unstable, curled-over equilibrium; MuJoCo's arm settled into the stable one"
+            "converge to an unstable, curled-over equilibrium; "
+            + (
+                "or the coarse MuJoCo arm cannot curl that far"
+                if coarse
+                else "MuJoCo's arm settled into the stable one"
+            )
         )
     for j, (section, sec_state) in enumerate(zip(arm.sections, state.sections)):
         lows = [m.min_length_m for m in section.muscles]
