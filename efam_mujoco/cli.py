@@ -263,7 +263,12 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # said by the command's own parser ('efam diagnose-arm: error: ...'), not 'efam: error'
+            commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+            commands.choices.get(getattr(args, "command", None), parser).error(
+                f"unrecognized arguments: {' '.join(extra)}"
+            )
     except SystemExit as done:  # --help, --version, or a usage error argparse has printed
         return int(done.code or 0) if not isinstance(done.code, str) else EXIT_BAD_INPUT
     from .files import check_outputs, route_mujoco_log

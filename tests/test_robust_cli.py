@@ -100,6 +100,12 @@ USAGE = [
         r"--pressures-kPa: 2000 kPa is outside the rig's control range",
     ),
     (["muscle", "FAM1", "--pressures-kPa", "-5"], r"--pressures-kPa: -5 kPa is outside"),
+    # said by the command's own parser (was 'efam: error: unrecognized arguments')
+    (
+        ["diagnose-arm", "r.csv", "r.csv", "--model", "m.xml"],
+        r"^efam diagnose-arm: error: unrecognized arguments: r\.csv",
+    ),
+    (["muscle", "FAM1", "--bogus"], r"^efam muscle: error: unrecognized arguments: --bogus"),
     # the value as typed, not rounded into the range (was '1000 kPa is outside ... 0 .. 1000 kPa')
     (["muscle", "FAM1", "--pressures-kPa", "1000.0001"], r"--pressures-kPa: 1000\.0001 kPa is outside"),
     (["muscle", "FAM1", "--pressures-kPa", "nan"], r"--pressures-kPa: takes a plain decimal number.*'nan'"),
