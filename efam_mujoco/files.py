@@ -243,6 +243,8 @@ def installed_package_dirs() -> list[Path]:
 
 #: the output flags that name a folder (every other output is a file, and a folder there is refused)
 FOLDER_OUTPUTS = ("--out", "--report", "--models-dir")
+#: data files an output never replaces, even when they are not the command's inputs
+DATA_SUFFIXES = (".csv", ".tsv")
 
 
 def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
@@ -285,6 +287,14 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
             raise OutputError(
                 f"{label} {out}: is a folder, not a file; give a file name (e.g. "
                 f"{out / ('figure.png' if label in ('--figure', '--strip') else 'result.json')})"
+            )
+        writes_a_file = label not in (*FIGURE_OUTPUTS, "--report", "--models-dir")  # folders: said below
+        if writes_a_file and out.suffix.lower() in DATA_SUFFIXES and out.is_file():
+            # a recording that is not this command's input (a slip of the tab key) was replaced
+            # by JSON or MJCF without a word
+            raise OutputError(
+                f"{label} {out}: an existing {out.suffix} file (a recording?) would be replaced by this "
+                "command's output; give the output a name of its own (.json, .xml)"
             )
         if label not in FOLDER_OUTPUTS:
             output_target(out, label)  # before the work: not a device, a pipe or a socket

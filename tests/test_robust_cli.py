@@ -873,3 +873,19 @@ def test_demo_refuses_a_contractile_muscle_before_printing(folder, capsys):
             r"mckibben\.json: the muscle is contractile \(braid angle 60 deg, above the neutral 35\.26 deg\)",
             r"`efam muscle` gives this one's table")  # fmt: skip
     assert "stroke_forces" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["size", "--stroke", "0.5", "--force", "10", "--pressure", "300", "--json", "data.csv"],
+        ["arm", "--xml", "data.csv"],
+        ["muscle", "FAM1", "--json", "data.csv"],
+    ],
+    ids=["size --json", "arm --xml", "muscle --json"],
+)
+def test_an_output_never_replaces_an_existing_recording(folder, capsys, argv):
+    """Before: a CSV that is not the command's input (data.csv beside it, a slip of the tab key)
+    was overwritten with JSON or MJCF without a word."""
+    (folder / "data.csv").write_text("time_s,length_m,pressure_kPa,force_N\n0,0.17,0,0\n")
+    run_bad(argv, folder, capsys, r"data\.csv: an existing \.csv file \(a recording\?\) would be replaced")
