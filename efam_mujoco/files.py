@@ -243,6 +243,8 @@ def installed_package_dirs() -> list[Path]:
 
 #: the output flags that name a folder (every other output is a file, and a folder there is refused)
 FOLDER_OUTPUTS = ("--out", "--report", "--models-dir")
+#: the folder outputs that are never a file (``--out`` is a folder for demo, a file for calibrate)
+FOLDER_ONLY_OUTPUTS = ("--report", "--models-dir")
 #: data files an output never replaces, even when they are not the command's inputs
 DATA_SUFFIXES = (".csv", ".tsv")
 
@@ -288,8 +290,8 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
                 f"{label} {out}: is a folder, not a file; give a file name (e.g. "
                 f"{out / ('figure.png' if label in ('--figure', '--strip') else 'result.json')})"
             )
-        writes_a_file = label not in (*FIGURE_OUTPUTS, "--report", "--models-dir")  # folders: said below
-        if writes_a_file and out.suffix.lower() in DATA_SUFFIXES and out.is_file():
+        writes_data = label not in (*FIGURE_OUTPUTS, *FOLDER_ONLY_OUTPUTS)  # a folder output: said below
+        if writes_data and out.suffix.lower() in DATA_SUFFIXES and out.is_file():
             # a recording that is not this command's input (a slip of the tab key) was replaced
             # by JSON or MJCF without a word
             raise OutputError(

@@ -403,10 +403,10 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
         _check_keys(given, dict(_CONSTANTS), where)
         for base, quantity in _CONSTANTS[:2] + _CONSTANTS[3:]:
             key = f"{base}_{'m3' if quantity == 'volume' else 'm'}"
-            value = _quantity(given, base, quantity, where, default=constants.get(key))
+            derived = constants.get(key)  # from the geometry block, if any
+            value = _quantity(given, base, quantity, where, default=derived)
             if value is None:
                 raise MuscleFileError(f"{where}: missing key '{key}' (or a 'geometry' block)")
-            derived = constants.get(key)
             if (
                 key == "rest_length_m"
                 and derived is not None

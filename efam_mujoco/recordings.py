@@ -859,7 +859,7 @@ def check_plausibility(
         # ... and where the model expects no change either (one row repeated, every pressure in the
         # dead band) nothing says the load cell is dead: 'nothing-varies' or the model's range speak
         if dead and expected > 0.0:
-            fits = unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 and expected > 0 else ""
+            fits = unit_that_fits(spread, expected, fcol, FORCE_UNITS) if spread > 0 else ""
             hint = f" (or the numbers fit '{fits}')" if fits and len(np.unique(F[:1000])) > 2 else ""
             findings.append(Finding("force-dead", (
                 f"{src}: column '{fcol}': the force hardly changes (range {spread:.4g} N over {len(F)} samples) "
