@@ -604,6 +604,12 @@ def stress_from_document(doc: dict, label: str, law: str | None = None) -> Stres
             f"{label}: stress: 'default': no coefficients for stress law '{default}' "
             f"(has: {', '.join(block['laws'])})"
         )
+    if law is None and default is None and len(block["laws"]) > 1:
+        # which law the file means is not ours to guess: the first one written is no choice
+        raise MuscleFileError(
+            f"{label}: stress: {len(block['laws'])} laws ({', '.join(block['laws'])}) and no 'default': "
+            'name the one to use with "default"'
+        )
     name = law or default or next(iter(block["laws"]))
     if name not in block["laws"]:
         raise MuscleFileError(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -235,3 +236,20 @@ def test_a_tested_level_below_the_dead_band_keeps_the_dead_band_as_estimated():
     summary = cal.to_json()
     assert summary["deadband_kPa"] == pytest.approx(cal.muscle.deadband_Pa / 1e3)
     assert summary["blocked_deadband_kPa"] == pytest.approx(cal.deadband_Pa / 1e3)
+
+
+def test_a_starting_file_of_several_laws_needs_no_default(tmp_path):
+    # calibration estimates the law anew, so a starting geometry of several laws and no
+    # 'default' is read (the muscle file reader refuses it: which law it means is not said)
+    from efam_mujoco import load_muscle
+    from efam_mujoco.calibrate.cli import load_uncalibrated
+    from efam_mujoco.musclefile import MuscleFileError
+
+    doc = json.loads((Path(__file__).parents[1] / "efam_mujoco" / "presets" / "fam1.json").read_text())
+    doc["stress"].pop("default")
+    doc["stress"]["laws"].pop("linear")
+    path = tmp_path / "start.json"
+    path.write_text(json.dumps(doc))
+    assert load_uncalibrated(str(path)).stress.name in doc["stress"]["laws"]
+    with pytest.raises(MuscleFileError, match="no 'default'"):
+        load_muscle(path)

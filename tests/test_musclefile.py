@@ -41,6 +41,12 @@ def _base():
     }
 
 
+def test_one_law_needs_no_default(tmp_path):
+    doc = _base()
+    doc["stress"].pop("default")
+    assert load_muscle(_write(tmp_path, doc)).stress.name == "linear"
+
+
 def test_units_in_keys_are_converted(tmp_path):
     muscle = load_muscle(_write(tmp_path, _base()))
     assert muscle.rest_diameter_m == pytest.approx(0.0287)
@@ -61,6 +67,16 @@ def test_units_in_keys_are_converted(tmp_path):
         (lambda d: d["constants"].update(rest_length_m=-0.17), "rest_length_m"),
         (lambda d: d["stress"].update(default="ogden"), "no coefficients for stress law 'ogden'"),
         (lambda d: d["stress"]["laws"]["linear"].pop("E2"), "missing coefficient key 'E2'"),
+        (
+            # two laws and none named: the first one written is not a choice the file made
+            lambda d: (
+                d["stress"].pop("default")
+                and d["stress"]["laws"].update(
+                    polynomial={"E1_Pa": 2.4e6, "E2": 2.0, "E3_Pa": -1.8e6, "E4_Pa": 1.2e6}
+                )
+            ),
+            r"2 laws \(linear, polynomial\) and no 'default'",
+        ),
         (lambda d: d.update(format="other"), "'format'"),
         (lambda d: d["constants"].update(theta_rest_deg="twelve"), "theta_rest_deg"),
     ],

@@ -32,7 +32,11 @@ def load_uncalibrated(source: str):
         doc["stress"] = {"default": "linear", "laws": {"linear": dict(_PLACEHOLDER_LAW)}}
     stress = doc["stress"]
     laws = stress.get("laws") if isinstance(stress, dict) else None
-    law = "linear" if isinstance(laws, dict) and "linear" in laws else None
+    law = None
+    if isinstance(laws, dict) and laws:
+        # calibration estimates the law anew: any of the file's laws serves as the start (a file of
+        # several laws need not name one here)
+        law = "linear" if "linear" in laws else stress.get("default") or next(iter(laws))
     return muscle_from_document(doc, label, law)
 
 
