@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -243,9 +242,9 @@ def test_a_starting_file_of_several_laws_needs_no_default(tmp_path):
     # 'default' is read (the muscle file reader refuses it: which law it means is not said)
     from efam_mujoco import load_muscle
     from efam_mujoco.calibrate.cli import load_uncalibrated
-    from efam_mujoco.musclefile import MuscleFileError
+    from efam_mujoco.musclefile import MuscleFileError, read_document
 
-    doc = json.loads((Path(__file__).parents[1] / "efam_mujoco" / "presets" / "fam1.json").read_text())
+    doc, _ = read_document("FAM1")
     doc["stress"].pop("default")
     doc["stress"]["laws"].pop("linear")
     path = tmp_path / "start.json"
