@@ -157,12 +157,18 @@ FIGURE_OUTPUTS = ("--figure", "--strip")
 
 def figure_formats() -> tuple[str, ...]:
     """The file suffixes (lower case, no dot) a figure can be written as: matplotlib's own list
-    when it is installed, else :data:`FIGURE_FORMATS`."""
+    when it is installed, else :data:`FIGURE_FORMATS`; ``pgf`` only where the TeX program its
+    backend measures text with is installed (without it the figure failed after the command had
+    done its work and written its other outputs)."""
     try:
+        import matplotlib
         from matplotlib.backend_bases import FigureCanvasBase
     except ImportError:
-        return FIGURE_FORMATS
-    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+        formats, tex = FIGURE_FORMATS, "xelatex"
+    else:
+        formats = tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+        tex = str(matplotlib.rcParams.get("pgf.texsystem", "xelatex"))
+    return tuple(f for f in formats if f != "pgf" or shutil.which(tex))
 
 
 def check_figure_path(label: str, path: str | os.PathLike) -> None:
@@ -247,6 +253,9 @@ FOLDER_OUTPUTS = ("--out", "--report", "--models-dir")
 FOLDER_ONLY_OUTPUTS = ("--report", "--models-dir")
 #: data files an output never replaces, even when they are not the command's inputs
 DATA_SUFFIXES = (".csv", ".tsv")
+#: the preset muscles' names as a user types them (``musclefile.PRESETS``, lower case): an output
+#: of that bare name is refused, as it would shadow the preset in the folder it is written to
+PRESET_NAMES = ("fam1", "fam2")
 
 
 def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
@@ -285,6 +294,12 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
                         f"{file_label} {file} is inside the {folder_label} folder {folder}, which is written as a "
                         "whole (one would overwrite or remove the other); give a path outside it"
                     )
+        if out.name.lower() in PRESET_NAMES:
+            # a bare preset name written as a file made every later '--muscle FAM1' in this folder
+            # ambiguous ("both a preset and a file here")
+            raise OutputError(
+                f"{label} {out}: is the name of a preset muscle; give another name (e.g. {out}.json)"
+            )
         if label not in FOLDER_OUTPUTS and out.is_dir():
             raise OutputError(
                 f"{label} {out}: is a folder, not a file; give a file name (e.g. "
@@ -452,6 +467,7 @@ def route_mujoco_log(path: str | os.PathLike | None = None) -> None:
     import mujoco
 
     if path is not None:
+        refuse_data_file_as_log(path)
         try:  # found now, not as warnings silently lost later: a missing folder, no permission
             with open(path, "a", encoding="utf-8"):
                 pass
@@ -459,6 +475,36 @@ def route_mujoco_log(path: str | os.PathLike | None = None) -> None:
             raise OutputError(f"--mujoco-log {path}: cannot append to it ({err.strerror})") from None
     _log_target[0] = None if path is None else Path(path)
     mujoco.set_mju_user_warning(_mujoco_warning)
+
+
+#: suffixes of files the log is never appended to: efam's own data, models and figures (a
+#: warning appended to a muscle file left it unreadable JSON)
+NOT_A_LOG_SUFFIXES = ("csv", "tsv", "json", "xml", "mjb", "npz", "npy", "yaml", "yml", "toml", "py", "so")
+
+
+def refuse_data_file_as_log(path: str | os.PathLike) -> None:
+    """Refuse ``--mujoco-log`` naming an existing file that holds data rather than a log: one
+    with a data, model or figure suffix, whose text opens as JSON or XML does (``{``, ``[``,
+    ``<``), or whose first line is a table's header, whatever its name. Appending a warning to it
+    would corrupt it. A new file, an empty one, or a plain text log is fine."""
+    target = _link_target(path)
+    if not target.is_file() or target.stat().st_size == 0:
+        return
+    suffix = target.suffix.lower().lstrip(".")
+    try:
+        with open(target, "rb") as handle:
+            head = handle.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n")
+    except OSError:
+        return  # the append check that follows names what is wrong with it
+    first = head.split(b"\n", 1)[0].strip()
+    # a table's header line (a recording saved as .txt): fields split by commas or tabs and no
+    # spaces, which MuJoCo's warnings always have
+    table = len(re.split(rb"[,\t;]", first)) >= 2 and b" " not in first
+    if suffix in NOT_A_LOG_SUFFIXES or suffix in figure_formats() or head[:1] in (b"{", b"[", b"<") or table:
+        raise OutputError(
+            f"--mujoco-log {path}: the file exists and holds data, not a log (appending MuJoCo's "
+            "warnings would corrupt it); name a new file or a .log/.txt log"
+        )
 
 
 def _mujoco_warning(message: str) -> None:
@@ -470,12 +516,26 @@ def _mujoco_warning(message: str) -> None:
         print(f"MuJoCo warning: {text}", file=sys.stderr)
         return
     try:
+        # a log whose last line has no newline keeps it: the warning starts its own line
+        lead = "\n" if _ends_without_newline(target) else ""
         with open(target, "a", encoding="utf-8") as handle:
-            handle.write(text + "\n")
+            handle.write(lead + text + "\n")
     except OSError as err:  # the log went away or filled up: the warning still reaches the user
         print(
             f"MuJoCo warning: {text} (not written to --mujoco-log {target}: {err.strerror})", file=sys.stderr
         )
+
+
+def _ends_without_newline(path: Path) -> bool:
+    """Whether the file at ``path`` exists, is not empty and its last byte is not a newline."""
+    try:
+        with open(path, "rb") as handle:
+            if handle.seek(0, os.SEEK_END) == 0:
+                return False
+            handle.seek(-1, os.SEEK_END)
+            return handle.read(1) != b"\n"
+    except OSError:
+        return False
 
 
 @contextlib.contextmanager

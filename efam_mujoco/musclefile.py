@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import strict_json, write_json_atomic
+from .files import PRESET_NAMES, strict_json, write_json_atomic
 from .muscle import (
     DEFAULT_LOCK_STIFFNESS,
     MAX_DEADBAND_PA,
@@ -46,7 +46,7 @@ from .stress import E1_PLAUSIBLE_PA, LAW_NAMES, StressLaw, StressLawError
 from .units import REQUIRED, UnitError, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.muscle/1"
-PRESETS = ("fam1", "fam2")
+PRESETS = PRESET_NAMES  # one list, kept beside the output policy that refuses those names
 
 _GEOMETRY_LENGTHS = (
     "rest_length", "rest_diameter", "sleeve_length_ref", "sleeve_diameter_ref", "bladder_length",
@@ -78,6 +78,9 @@ _CONSTANTS = (("rest_length", "length"), ("rest_diameter", "length"), ("theta_re
 #: for a fluidic muscle and is most likely in another unit than its key says.
 PLAUSIBLE = {
     "length": SIZE_RANGE_M,  # 0.1 mm .. 10 m, the Muscle's own bounds
+    # a braid's thread: 0 (no thickness modelled), or from a 10 um filament up (a 50 um thread
+    # was refused by the 0.1 mm floor of the other sizes while 0 passed)
+    "thickness": (1e-5, SIZE_RANGE_M[1]),
     "volume": (1e-12, 1.0),
     "pressure": (0.0, 10e6),  # a dead band up to 10 MPa
     "angle": (0.0, 3.141592653589793 / 2),
@@ -282,7 +285,7 @@ def _check_keys(block: dict, allowed_bases: dict[str, str | None], where: str) -
         raise MuscleFileError(f"{where}: unknown key '{key}' (known: {known})")
 
 
-_SI_UNIT = {"length": "m", "volume": "m3", "pressure": "Pa", "angle": "rad"}
+_SI_UNIT = {"length": "m", "thickness": "m", "volume": "m3", "pressure": "Pa", "angle": "rad"}
 
 
 def _plausible(value: float, block: dict, base: str, quantity: str, where: str) -> float:
@@ -323,7 +326,9 @@ def geometry_from_dict(g: dict, where: str) -> Geometry:
     for k in _GEOMETRY_LENGTHS:
         value = read_quantity(g, k, "length", where)
         values[f"{k}_m"] = (
-            value if k == "thread_thickness" and value == 0 else _plausible(value, g, k, "length", where)
+            (value if value == 0 else _plausible(value, g, k, "thickness", where))
+            if k == "thread_thickness"
+            else _plausible(value, g, k, "length", where)
         )
     angle = _quantity(g, "sleeve_angle_ref", "angle", where, default=None)
     if angle is not None:

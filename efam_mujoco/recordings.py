@@ -342,9 +342,15 @@ def read_csv(
                 column, reason = problem
                 if last > first:  # an unclosed quote swallowed the lines after it
                     reason += f" (a quote on line {first} runs on to line {last})"
-                if on_bad_rows == "error":
+                if on_bad_rows == "error" or last > first:
+                    # dropping a row an unclosed quote spans would drop every line it swallowed
+                    # (half a recording, reported as one bad row): refused in either mode
                     where = f"line {line}" + (f", column '{column}'" if column else "")
-                    hint = " (--on-bad-rows drop, or on_bad_rows='drop' in Python, drops such rows)"
+                    hint = (
+                        f"; close the quote: dropping the row would lose lines {first}-{last}"
+                        if last > first
+                        else " (--on-bad-rows drop, or on_bad_rows='drop' in Python, drops such rows)"
+                    )
                     raise RecordingError(f"{label}: {where}: {reason}{hint}")
                 if len(dropped) < 10000:
                     dropped.append({"line": line, "column": column, "reason": reason})
@@ -579,6 +585,9 @@ class Finding:
 
     check: str
     message: str
+    #: beyond any fluidic muscle (not only this one's rating or range): refused even when its
+    #: check is allowed, since no ``--allow`` makes such a recording a muscle's
+    impossible: bool = False
 
 
 class PlausibilityError(RecordingError):
@@ -703,6 +712,7 @@ def check_plausibility(
     for rec in recordings:
         src = shown_path(rec.meta.get("source", "recording"))
         L, P, F = rec.length_m, rec.pressure_Pa, rec.force_N
+        findings += _impossible(rec, src)
         lcol, pcol, fcol = (
             _column(rec, "length|displacement"),
             _column(rec, "pressure"),
@@ -795,8 +805,19 @@ def check_plausibility(
                 f"pressure {rated_pressure_Pa / 1e3:g} kPa{hint}"
             )))  # fmt: skip
         elif top <= muscle.deadband_Pa:
-            fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE) if top > 0 else ""
-            hint = f"; the numbers fit '{fits}'" if fits else ""
+            # a unit is offered only for a pressure that was driven (its swing far above its
+            # sample-to-sample noise): on a never-pressurised file the noise around zero "fit"
+            # bar or MPa, inviting a relabel that would corrupt a right column
+            jitter = float(np.median(np.abs(np.diff(P)))) if len(P) > 1 else 0.0
+            driven = top > 0 and float(np.ptp(P)) > 50.0 * jitter
+            fits = unit_that_fits(top, 0.5 * rated_pressure_Pa, pcol, PRESSURE) if driven else ""
+            hint = (
+                f"; the numbers fit '{fits}'"
+                if fits
+                else ""
+                if driven
+                else "; it stays within its own noise: was the muscle pressurised?"
+            )
             findings.append(Finding("pressure-deadband", (
                 f"{src}: column '{pcol}': the pressure never exceeds the muscle's dead band "
                 f"({top / 1e3:.4g} kPa <= {muscle.deadband_Pa / 1e3:.4g} kPa), so the muscle is never "
@@ -960,6 +981,31 @@ def _force_scale(F, model, blocked) -> float | None:
     return float(np.dot(f, m) / norm) if norm > 0 else None
 
 
+#: No fluidic muscle is pressurised above this (pneumatic ones run under 1 MPa, hydraulic ones
+#: under 35 MPa), nor longer than this (the muscle model's own size bound): a recording beyond
+#: either is refused even with ``--allow pressure-range`` / ``length-range``, which are for a
+#: rating or a range exceeded, not for a gigapascal or a hundred metres.
+MAX_PRESSURE_PA = 100e6
+MAX_LENGTH_M = 10.0
+
+
+def _impossible(rec: Recording, src: str) -> list[Finding]:
+    """The not-allowable findings of one recording: a pressure or a length no fluidic muscle has."""
+    out = []
+    for check, values, limit, what, unit, scale, key in (
+        ("pressure-range", rec.pressure_Pa, MAX_PRESSURE_PA, "pressure", "MPa", 1e-6, "pressure"),
+        ("length-range", rec.length_m, MAX_LENGTH_M, "length", "m", 1.0, "length|displacement"),
+    ):
+        if len(values) and float(np.max(values)) > limit:
+            i = int(np.argmax(values))
+            out.append(Finding(check, (
+                f"{src}: {_line(rec, i)}, column '{_column(rec, key)}': {what} {values[i] * scale:.4g} {unit} "
+                f"cannot be physical for any fluidic muscle (above {limit * scale:g} {unit}; not allowable: "
+                "is the column's unit right?)"
+            ), impossible=True))  # fmt: skip
+    return out
+
+
 def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str = "--allow") -> None:
     """Raise :class:`PlausibilityError` listing every finding whose check is not in ``allow``;
     tell ``warn`` (default: standard error) each allowed one as ``warning [check]: ...``."""
@@ -968,16 +1014,16 @@ def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str
     unknown = allow - set(CHECKS)
     if unknown:
         raise ValueError(f"{flag}: unknown check '{sorted(unknown)[0]}' (known: {', '.join(CHECKS)})")
-    refused = [f for f in findings if f.check not in allow]
+    refused = [f for f in findings if f.check not in allow or f.impossible]
     for f in findings:
-        if f.check in allow:
+        if f.check in allow and not f.impossible:
             warn(f"warning [{f.check}]: {f.message}")
     if refused:
         lines = [f"[{f.check}] {f.message}" for f in refused]
-        names = " ".join(sorted({f.check for f in refused}))
+        names = " ".join(sorted({f.check for f in refused if f.check not in allow}))
         raise PlausibilityError(
             "implausible recording(s): " + "; ".join(lines)
-            + f" (if the data are right, pass {flag} {names} to continue with a warning)"
+            + (f" (if the data are right, pass {flag} {names} to continue with a warning)" if names else "")
         )  # fmt: skip
 
 

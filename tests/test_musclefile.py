@@ -95,3 +95,18 @@ def test_not_json_and_missing_file(tmp_path):
         load_muscle(path)
     with pytest.raises(MuscleFileError, match="neither a preset"):
         load_muscle(tmp_path / "absent.json")
+
+
+@pytest.mark.parametrize("thickness_m, ok", [(0.0, True), (5e-5, True), (0.0001524, True), (5e-6, False)])
+def test_thread_thickness_from_a_fine_filament_up(tmp_path, thickness_m, ok):
+    """0 (no thickness modelled) passed while a real 50 um thread was refused by the 0.1 mm
+    floor of the other sizes; a thread is now plausible from 10 um up."""
+    from efam_mujoco.musclefile import read_document
+
+    doc, _ = read_document("FAM1")
+    doc["geometry"]["thread_thickness_m"] = thickness_m
+    if ok:
+        assert load_muscle(_write(tmp_path, doc)).thread_length_m > 0
+    else:
+        with pytest.raises(MuscleFileError, match=r"thread_thickness_m.*cannot be physical.*expected 1e-05"):
+            load_muscle(_write(tmp_path, doc))

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import stat
 import subprocess
@@ -889,3 +890,58 @@ def test_an_output_never_replaces_an_existing_recording(folder, capsys, argv):
     was overwritten with JSON or MJCF without a word."""
     (folder / "data.csv").write_text("time_s,length_m,pressure_kPa,force_N\n0,0.17,0,0\n")
     run_bad(argv, folder, capsys, r"data\.csv: an existing \.csv file \(a recording\?\) would be replaced")
+
+
+UNSTABLE_XML = (
+    '<mujoco><option timestep="1"/><worldbody><body><joint name="j" type="slide" axis="1 0 0"/>'
+    '<geom size="0.01" mass="1e-9"/></body></worldbody><actuator><motor joint="j" gear="1e12" '
+    'ctrllimited="true" ctrlrange="0 1e12"/></actuator></mujoco>'
+)
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("keep.json", '{"name": "mine"}\n'),  # a muscle file: a warning appended made it invalid JSON
+        ("notes", "<mujoco/>"),  # XML whatever its name
+        ("rec.txt", "time_s,length_m,pressure_kPa,force_N\n0,0.1,0,0\n"),  # a recording saved as .txt
+        ("fig.png", "not really a png"),
+    ],
+)
+def test_mujoco_log_is_never_appended_to_a_data_file(tmp_path, capsys, name, text):
+    (tmp_path / "unstable.xml").write_text(UNSTABLE_XML)
+    (tmp_path / name).write_text(text)
+    run_bad(["--mujoco-log", name, "view", "unstable.xml", "--check"], tmp_path, capsys,
+            rf"--mujoco-log {re.escape(name)}: the file exists and holds data, not a log")  # fmt: skip
+    assert (tmp_path / name).read_text() == text
+
+
+def test_mujoco_log_appends_on_a_line_of_its_own(tmp_path, capsys):
+    (tmp_path / "unstable.xml").write_text(UNSTABLE_XML)
+    log = tmp_path / "run.log"
+    log.write_text("my notes, no newline at the end")
+    code, _, err = run_cli(["--mujoco-log", "run.log", "view", "unstable.xml", "--check"], tmp_path, capsys)
+    assert code == 2 and "unstable" in err
+    lines = log.read_text().splitlines()
+    assert lines[0] == "my notes, no newline at the end"
+    assert lines[1].startswith("Nan, Inf or huge value")
+
+
+def test_a_figure_format_that_needs_tex_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    """``.pgf`` is matplotlib's, but its backend measures text with TeX: without it the figure
+    failed after the command had run and written its JSON. Refused up front, nothing written."""
+    import shutil as sh
+
+    monkeypatch.setattr(sh, "which", lambda name, *a, **k: None)
+    run_bad(["size", "--stroke", "0.5", "--force", "20", "--pressure", "300", "--top", "1",
+             "--figure", "f.pgf", "--json", "sz.json"], tmp_path, capsys,
+            r"--figure f\.pgf: '\.pgf' is not a figure format")  # fmt: skip
+    assert not (tmp_path / "sz.json").exists()
+
+
+@pytest.mark.parametrize("argv", [["muscle", "FAM1", "--json", "FAM1"], ["demo", "--out", "fam2"],
+                                  ["arm", "--xml", "sub/Fam1"]])  # fmt: skip
+def test_an_output_is_never_named_like_a_preset(tmp_path, capsys, argv):
+    """Written as ./FAM1, a file made every later '--muscle FAM1' in that folder ambiguous."""
+    (tmp_path / "sub").mkdir()
+    run_bad(argv, tmp_path, capsys, r"is the name of a preset muscle; give another name")

@@ -333,6 +333,16 @@ def test_suite_list_honours_domain_and_task(tmp_path, capsys):
     assert "None" not in err
 
 
+def test_suite_list_refuses_the_flags_it_would_ignore(tmp_path, capsys):
+    """--list runs no episode and writes nothing: --json, --strip, --episodes and --seed beside
+    it exited 0 and wrote nothing; now refused, naming them."""
+    run_bad(["suite", "--list", "--json", "l.json", "--episodes", "3"], tmp_path, capsys,
+            r"--list only lists the tasks .*--json, --episodes would be ignored")  # fmt: skip
+    run_bad(["suite", "--list", "--strip", "s.png", "--seed", "4"], tmp_path, capsys,
+            r"--strip, --seed would be ignored")  # fmt: skip
+    assert not (tmp_path / "l.json").exists() and not (tmp_path / "s.png").exists()
+
+
 def test_real_muscles_held_near_their_full_contraction_pass_the_force_scale():
     # a Festo DMSP-10 held at 75 % of its contraction pulls 0.02-0.23 x what the nominal model
     # says (the model's relative error grows without bound towards the free length): judged only

@@ -285,6 +285,49 @@ def test_implausible_recording_is_an_error_naming_the_check(
         assert __import__("re").search(pattern, err), err
 
 
+def test_a_never_pressurised_file_gets_no_unit_hint(tmp_path, capsys):
+    """The pressure sensor's noise around zero "fit" bar or MPa, and the message invited a relabel
+    that would corrupt a right column; a file never pressurised is asked about instead. A driven
+    pressure under the wrong unit still gets its unit."""
+    noise = np.abs(np.random.default_rng(1).normal(0.0, 0.4, N))  # kPa, a vented regulator
+    _write(tmp_path, replaced(2, noise))
+    err = run_bad(["diagnose", "rec.csv", "--muscle", "FAM1"], tmp_path, capsys,
+                  r"\[pressure-deadband\].*it stays within its own noise: was the muscle pressurised\?")  # fmt: skip
+    assert "the numbers fit" not in err
+    _write(tmp_path, scaled(2, 1.0, "time_s,length_m,pressure_Pa,force_N"))
+    run_bad(["diagnose", "rec.csv", "--muscle", "FAM1"], tmp_path, capsys, r"the numbers fit 'pressure_kPa'")
+
+
+@pytest.mark.parametrize(
+    "column, value, allow, pattern",
+    [
+        (
+            2,
+            1e6,
+            "pressure-range",
+            r"\[pressure-range\].*pressure 1000 MPa cannot be physical for any fluidic muscle",
+        ),
+        (
+            1,
+            100.0,
+            "length-range",
+            r"\[length-range\].*length 100 m cannot be physical for any fluidic muscle",
+        ),
+    ],
+)
+def test_allow_does_not_let_the_impossible_through(tmp_path, capsys, column, value, allow, pattern):
+    """--allow pressure-range is for a rating exceeded: a gigapascal (or a 100 m length) went
+    through it and was calibrated, "stable"; now refused whatever is allowed, without offering
+    the --allow that cannot help."""
+    rows = good_rows().copy()
+    rows[len(rows) // 2, column] = value
+    (tmp_path / "rec.csv").write_text(csv_text(rows, HEADER))
+    err = run_bad(["calibrate", "rec.csv", "--muscle", "FAM1", "--allow", allow, "force-model", "length-unit",
+                   "rest-length", "pressure-unit", "force-range", "--json", "out.json"], tmp_path, capsys, pattern)  # fmt: skip
+    assert f"pass --allow {allow}" not in err
+    assert not (tmp_path / "out.json").exists()
+
+
 def test_a_test_held_above_an_atmosphere_is_not_taken_for_absolute_pressure():
     # the paper's strokes never fall below 103 kPa gauge: as recorded they fit the model, an
     # atmosphere lower they do not, so the absolute-pressure check stays silent; a file shifted up
@@ -441,6 +484,20 @@ def test_drop_policy_still_names_the_rows(tmp_path, capsys):
     )  # fmt: skip
     assert code == 0, err
     assert "dropped 1 bad row(s): line 6 (pressure_kPa: not a number: 'abc')" in err
+
+
+def test_drop_policy_refuses_a_quote_that_swallows_the_rest(tmp_path, capsys):
+    """An unclosed quote makes one "row" of every line after it: dropping it would lose them all
+    (half a recording, reported as one bad row), so it is refused in either mode, naming the
+    lines it would lose; the file is left as it was."""
+    text = row(6, length='"0.17')
+    _write(tmp_path, text)
+    err = run_bad(
+        ["diagnose", "rec.csv", "--muscle", "FAM1", "--on-bad-rows", "drop"], tmp_path, capsys,
+        r"rec\.csv: line 6\b.*a quote on line 6 runs on to line (\d+)\); close the quote: dropping the row would lose lines 6-\1",
+    )  # fmt: skip
+    assert "dropped" not in err
+    assert (tmp_path / "rec.csv").read_text() == text
 
 
 def test_decimation_rule_and_same_mode_on_long_files(tmp_path, capsys):

@@ -105,6 +105,17 @@ def _run(args) -> int:
     from . import ALL_TASKS, BENCHMARKING, controllers
 
     if args.list:  # --domain/--task narrow the list (they were ignored without a word)
+        ignored = [f for f, v in (("--json", args.json), ("--strip", args.strip)) if v is not None]
+        ignored += [
+            f
+            for f, v, default in (("--episodes", args.episodes, 10), ("--seed", args.seed, 0))
+            if v != default
+        ]
+        if ignored:  # a list runs no episode and writes nothing: said, not dropped without a word
+            raise ValueError(
+                f"--list only lists the tasks (narrowed by --domain/--task); {', '.join(ignored)} would be "
+                "ignored: drop them, or run a task without --list"
+            )
         shown = [(d, t) for d, t in ALL_TASKS if args.domain in (None, d) and args.task in (None, t)]
         if not shown:
             given = " ".join(
