@@ -161,8 +161,13 @@ def _file_args(args) -> tuple[dict, dict]:
         inputs.update({label: existing(paths) for label, paths in referenced(args).items()})
     outputs = {flag(n): getattr(args, n, None) for n in names_out}
     if getattr(args, "mujoco_log", None) is not None:
-        if not args.mujoco_log.strip() or Path(args.mujoco_log).is_dir():
+        if not args.mujoco_log.strip():
             raise ValueError(f"--mujoco-log: '{args.mujoco_log}' is not a file name")
+        if Path(args.mujoco_log).is_dir():
+            raise ValueError(
+                f"--mujoco-log {args.mujoco_log}: is a folder; give a log file's name "
+                f"(e.g. {Path(args.mujoco_log) / 'mujoco.log'})"
+            )
         outputs["--mujoco-log"] = args.mujoco_log
     return inputs, outputs
 

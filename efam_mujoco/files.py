@@ -64,6 +64,18 @@ def output_target(path: str | os.PathLike, label: str = "output") -> Path:
     return target
 
 
+def _check_log_target(path: Path) -> None:
+    """``--mujoco-log`` is appended to, never renamed over: a character device (``/dev/null``, to
+    discard the warnings) is fine; a pipe or a socket is refused (opening one to append waits for
+    a reader, and the command would hang)."""
+    target = _link_target(path)
+    if target.exists() and not target.is_file() and not target.is_dir() and not target.is_char_device():
+        raise OutputError(
+            f"--mujoco-log {path} is a pipe or a socket: opening it for the log would wait for a reader; "
+            "give a file name (or /dev/null to discard the warnings)"
+        )
+
+
 def _temporary_beside(path: Path, suffix: str = "") -> tuple[int, Path]:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -313,7 +325,9 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
                 f"{label} {out}: an existing {out.suffix} file (a recording?) would be replaced by this "
                 "command's output; give the output a name of its own (.json, .xml)"
             )
-        if label not in FOLDER_OUTPUTS:
+        if label == "--mujoco-log":
+            _check_log_target(out)
+        elif label not in FOLDER_OUTPUTS:
             output_target(out, label)  # before the work: not a device, a pipe or a socket
         if label in FIGURE_OUTPUTS:
             check_figure_path(label, out)
@@ -369,21 +383,33 @@ def _report_files(folder: Path) -> dict[str, Path]:
     return out
 
 
-def _write_marker(folder: Path) -> None:
-    """The marker, listing every file of the report with its sha256 (what may be replaced)."""
-    lines = [_MARKER_HEADER]
+#: the marker's line naming the command that wrote the report (older markers have none)
+_MARKER_COMMAND = "command: efam "
+
+
+def _write_marker(folder: Path, command: str | None = None) -> None:
+    """The marker, listing every file of the report with its sha256 (what may be replaced), and
+    the command that wrote it (only that command replaces it)."""
+    lines = [_MARKER_HEADER] + ([_MARKER_COMMAND + command] if command else [])
     for relative, entry in _report_files(folder).items():
         if not relative.endswith("/"):
             lines.append(f"{_digest(entry)}  {relative}")
     (folder / REPORT_MARKER).write_text("\n".join(lines) + "\n")
 
 
-def _not_the_reports(folder: Path) -> str:
+def _not_the_reports(folder: Path, command: str | None = None) -> str:
     """What in ``folder`` is not the report its marker lists, unchanged ('' when nothing): a file
-    the user added or edited there is the user's, and the folder is then not replaced."""
+    the user added or edited there is the user's, and the folder is then not replaced; nor is
+    another command's report (``efam diagnose --report`` over ``efam demo``'s folder removed the
+    demo's files without a word)."""
     text = (folder / REPORT_MARKER).read_text(errors="replace").splitlines()
     if not text or text[0] != _MARKER_HEADER:
         return f"its {REPORT_MARKER} lists no report files (hand-made, or from an older efam_mujoco)"
+    wrote = next(
+        (line[len(_MARKER_COMMAND) :] for line in text[1:] if line.startswith(_MARKER_COMMAND)), None
+    )
+    if command and wrote and wrote != command:
+        return f"it is the report of 'efam {wrote}', not of 'efam {command}'"
     listed = dict(reversed(line.split("  ", 1)) for line in text[1:] if "  " in line)
     for relative, entry in _report_files(folder).items():
         if relative.endswith("/"):
@@ -395,10 +421,13 @@ def _not_the_reports(folder: Path) -> str:
     return ""
 
 
-def check_replaceable_folder(path: str | os.PathLike, label: str = "output folder") -> Path:
+def check_replaceable_folder(
+    path: str | os.PathLike, label: str = "output folder", command: str | None = None
+) -> Path:
     """Refuse a folder that exists and is neither empty nor an untouched previous efam report
-    (its marker lists every file in it, unchanged: it would be replaced as a whole), and a path
-    that is a file. Returns the folder to write (a link's target)."""
+    (its marker lists every file in it, unchanged: it would be replaced as a whole) of the same
+    ``command`` (``"demo"``, ``"diagnose"``...; any, when not given or when an older marker does
+    not say), and a path that is a file. Returns the folder to write (a link's target)."""
     given = Path(path)
     path = _link_target(given)
     if given.is_symlink() and not path.exists():
@@ -411,8 +440,8 @@ def check_replaceable_folder(path: str | os.PathLike, label: str = "output folde
         if not (path / REPORT_MARKER).is_file():
             why = f"is not an efam report folder (no {REPORT_MARKER})"
         else:
-            why = _not_the_reports(path)
-            why = f"is not only an efam report: {why}" if why else ""
+            why = _not_the_reports(path, command)
+            why = f"is not only this command's efam report: {why}" if why else ""
         if why:
             raise OutputError(
                 f"{label} {given} exists, is not empty and {why}; it would be replaced as a whole, so name "
@@ -422,7 +451,7 @@ def check_replaceable_folder(path: str | os.PathLike, label: str = "output folde
 
 
 @contextlib.contextmanager
-def replace_folder(path: str | os.PathLike, label: str = "output folder"):
+def replace_folder(path: str | os.PathLike, label: str = "output folder", command: str | None = None):
     """Build a report folder in a temporary folder beside ``path``; on success swap it in as a
     whole (the previous report is removed only after the new one is in place); on any failure
     remove the temporary and leave ``path`` as it was. Yields the temporary folder to fill.
@@ -430,12 +459,12 @@ def replace_folder(path: str | os.PathLike, label: str = "output folder"):
     A folder with other contents than an untouched previous report is refused (see
     :func:`check_replaceable_folder`); a link to a folder is followed (the link is kept).
     """
-    path = check_replaceable_folder(path, label)
+    path = check_replaceable_folder(path, label, command)
     path.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".efam-tmp", dir=path.parent))
     try:
         yield staging
-        _write_marker(staging)
+        _write_marker(staging, command)
         os.chmod(staging, 0o777 & ~_umask())
         old = None
         if path.exists():

@@ -43,7 +43,7 @@ from .muscle import (
     MuscleError,
 )
 from .stress import E1_PLAUSIBLE_PA, LAW_NAMES, StressLaw, StressLawError
-from .units import REQUIRED, UnitError, read_quantity, split_unit
+from .units import REQUIRED, UnitError, json_shown, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.muscle/1"
 PRESETS = PRESET_NAMES  # one list, kept beside the output policy that refuses those names
@@ -252,7 +252,7 @@ def read_document(source: str | Path) -> tuple[dict, str]:
         raise MuscleFileError(f"{label}: expected a JSON object at the top level")
     fmt = doc.get("format")
     if fmt != FORMAT:
-        raise MuscleFileError(f"{label}: key 'format' must be '{FORMAT}', got {fmt!r}")
+        raise MuscleFileError(f"{label}: key 'format' must be '{FORMAT}', got {json_shown(fmt)}")
     return doc, label
 
 

@@ -712,7 +712,7 @@ def check_plausibility(
     for rec in recordings:
         src = shown_path(rec.meta.get("source", "recording"))
         L, P, F = rec.length_m, rec.pressure_Pa, rec.force_N
-        findings += _impossible(rec, src)
+        start = len(findings)
         lcol, pcol, fcol = (
             _column(rec, "length|displacement"),
             _column(rec, "pressure"),
@@ -951,6 +951,7 @@ def check_plausibility(
                     f"(--tension-only or the muscle file) but pushes in {np.mean(pushing):.0%} of the samples "
                     f"(e.g. {F[i]:.4g} N, push positive)"
                 )))  # fmt: skip
+        findings[start:] = _mark_impossible(rec, src, findings[start:])
     return findings
 
 
@@ -989,20 +990,35 @@ MAX_PRESSURE_PA = 100e6
 MAX_LENGTH_M = 10.0
 
 
-def _impossible(rec: Recording, src: str) -> list[Finding]:
-    """The not-allowable findings of one recording: a pressure or a length no fluidic muscle has."""
-    out = []
-    for check, values, limit, what, unit, scale, key in (
-        ("pressure-range", rec.pressure_Pa, MAX_PRESSURE_PA, "pressure", "MPa", 1e-6, "pressure"),
-        ("length-range", rec.length_m, MAX_LENGTH_M, "length", "m", 1.0, "length|displacement"),
+def _mark_impossible(rec: Recording, src: str, found: list[Finding]) -> list[Finding]:
+    """One recording's findings with the ones no fluidic muscle explains marked ``impossible``: a
+    pressure or a length beyond :data:`MAX_PRESSURE_PA` / :data:`MAX_LENGTH_M` (its range or
+    unit finding says so, once; one is added if none did)."""
+    out = list(found)
+    for checks, values, limit, what, unit, scale, key in (
+        (("pressure-range",), rec.pressure_Pa, MAX_PRESSURE_PA, "pressure", "MPa", 1e-6, "pressure"),
+        (
+            ("length-range", "length-unit"),
+            rec.length_m,
+            MAX_LENGTH_M,
+            "length",
+            "m",
+            1.0,
+            "length|displacement",
+        ),
     ):
-        if len(values) and float(np.max(values)) > limit:
-            i = int(np.argmax(values))
-            out.append(Finding(check, (
-                f"{src}: {_line(rec, i)}, column '{_column(rec, key)}': {what} {values[i] * scale:.4g} {unit} "
-                f"cannot be physical for any fluidic muscle (above {limit * scale:g} {unit}; not allowable: "
-                "is the column's unit right?)"
-            ), impossible=True))  # fmt: skip
+        if not len(values) or float(np.max(values)) <= limit:
+            continue
+        i = int(np.argmax(values))
+        note = (
+            f"{what} {values[i] * scale:.4g} {unit} at {_line(rec, i)} cannot be physical for any fluidic "
+            f"muscle (above {limit * scale:g} {unit}): not allowable"
+        )
+        k = next((k for k, f in enumerate(out) if f.check in checks), None)
+        if k is None:
+            out.append(Finding(checks[0], f"{src}: column '{_column(rec, key)}': {note}", impossible=True))
+        else:
+            out[k] = Finding(out[k].check, f"{out[k].message}; {note}", impossible=True)
     return out
 
 

@@ -190,7 +190,7 @@ def run_muscle(args) -> int:
 def run_demo(args) -> int:
     """``efam demo``: the table and a force-stroke figure in the ``--out`` folder (replaced as a
     whole: it holds only what the demo writes)."""
-    check_replaceable_folder(args.out, "--out")  # before the work, not after it
+    check_replaceable_folder(args.out, "--out", "demo")  # before the work, not after it
     muscle = load_muscle(args.muscle, args.stress)
     if muscle.theta_rest_deg >= NEUTRAL_BRAID_ANGLE_DEG:
         # the figure is the paper's Fig. 6, 0-105 % extension: a contractile muscle only shortens
@@ -206,7 +206,7 @@ def run_demo(args) -> int:
     print(format_report(muscle, rows))
     out = Path(args.out)
     figure_name = f"force_stroke_{safe_name(muscle.name.lower(), 'muscle')}.png"
-    with replace_folder(out, "--out") as staging:
+    with replace_folder(out, "--out", "demo") as staging:
         force_stroke_figure(muscle, staging / figure_name)
         (staging / "demo.json").write_text(text)
     print(f"\nfigure: {out / figure_name}\ntable:  {out / 'demo.json'}")

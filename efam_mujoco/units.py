@@ -8,6 +8,7 @@ know instead of guessing.
 
 from __future__ import annotations
 
+import json
 import math
 import unicodedata
 
@@ -95,7 +96,7 @@ def read_quantity(mapping: dict, base: str, quantity: str, where: str, default=R
     key, unit = found[0]
     value = mapping[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise UnitError(f"{where}: key '{key}' must be a finite number, got {value!r}")
+        raise UnitError(f"{where}: key '{key}' must be a finite number, got {json_shown(value)}")
     return float(value) * factor(unit, quantity, f"{where}: key '{key}'")
 
 
@@ -185,3 +186,14 @@ def as_floats(value):
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         return None
+
+
+def json_shown(value, limit: int = 60) -> str:
+    """``value`` as the JSON file wrote it, for messages: ``null``, ``true``, ``"text"`` (Python's
+    ``None``, ``True``, ``'text'`` are not what the user typed); cut to ``limit`` characters.
+    A value JSON cannot spell (from a Python call) is shown as Python shows it."""
+    try:
+        text = json.dumps(value, allow_nan=True)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -110,3 +110,19 @@ def test_thread_thickness_from_a_fine_filament_up(tmp_path, thickness_m, ok):
     else:
         with pytest.raises(MuscleFileError, match=r"thread_thickness_m.*cannot be physical.*expected 1e-05"):
             load_muscle(_write(tmp_path, doc))
+
+
+@pytest.mark.parametrize(
+    "edit, shown",
+    [
+        (lambda d: d.update(deadband_kPa=None), r"key 'deadband_kPa' must be a finite number, got null"),
+        (lambda d: d.update(deadband_kPa="33"), r"key 'deadband_kPa' must be a finite number, got \"33\""),
+        (lambda d: d.pop("format"), r"key 'format' must be 'efam_mujoco.muscle/1', got null"),
+    ],
+)
+def test_values_are_shown_as_the_file_wrote_them(tmp_path, edit, shown):
+    """JSON's null was shown as Python's None, a string with Python's quotes."""
+    doc = _base()
+    edit(doc)
+    with pytest.raises(MuscleFileError, match=shown):
+        load_muscle(_write(tmp_path, doc))

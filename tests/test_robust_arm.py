@@ -6,6 +6,7 @@ for minutes bounded before or while they run."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -605,3 +606,14 @@ def test_a_time_step_no_candidate_makes_stable_is_said_so(tmp_path, capsys):
     assert code == 0, err
     assert "warning: arm: no candidate time step is stable at 2 x itself" in err
     assert "not stable even at 2 x it" in err and "chosen: stable at" not in err
+
+
+@pytest.mark.parametrize(
+    "key, value, what",
+    [("payload_kg", -1.0, r"a mass >= 0 kg"), ("pressure_tau_s", -0.1, r"a time constant >= 0 s"),
+     ("timestep_s", 0.0, r"a time step > 0 s"), ("axial_viscosity_N_s", math.nan, r"a damping >= 0 N s")],
+)  # fmt: skip
+def test_an_arm_key_out_of_range_says_what_it_must_be(key, value, what):
+    """'arm: payload_kg is invalid: -1' said neither what nor in which unit it had to be."""
+    with pytest.raises(ValueError, match=rf"arm: {key} must be {what} \(finite\), got (-?[0-9.]+|nan)"):
+        arm.ArmSpec(sections=(arm.paper_section(),), **{key: value})

@@ -297,7 +297,7 @@ OVERWRITES = [
         r"--report sub would overwrite the input --model sub/arm\.xml",
     ),
     (["suite", "--episodes", "1", "--strip", "sub"], r"--strip sub: is a folder"),
-    (["--mujoco-log", "sub", "muscle", "FAM1"], r"--mujoco-log: 'sub' is not a file name"),
+    (["--mujoco-log", "sub", "muscle", "FAM1"], r"--mujoco-log sub: is a folder; give a log file's name"),
     (["--mujoco-log", "", "muscle", "FAM1"], r"--mujoco-log: '' is not a file name"),
 ]
 
@@ -945,3 +945,32 @@ def test_an_output_is_never_named_like_a_preset(tmp_path, capsys, argv):
     """Written as ./FAM1, a file made every later '--muscle FAM1' in that folder ambiguous."""
     (tmp_path / "sub").mkdir()
     run_bad(argv, tmp_path, capsys, r"is the name of a preset muscle; give another name")
+
+
+def test_a_report_folder_is_replaced_only_by_the_command_that_wrote_it(tmp_path, capsys):
+    """`efam diagnose --report` over `efam demo`'s folder removed the demo's files without a word:
+    the marker names the command, and another command's report is refused before any work."""
+    code, _, err = run_cli(["demo", "--out", "shared"], tmp_path, capsys)
+    assert code == 0, err
+    before = sorted(p.name for p in (tmp_path / "shared").iterdir())
+    assert "command: efam demo" in (tmp_path / "shared" / ".efam_report").read_text()
+    (tmp_path / "rec.csv").write_text("time_s,length_m,pressure_kPa,force_N\n0,0.17,0,0\n1,0.17,0,0\n")
+    run_bad(["diagnose", "--muscle", "FAM1", "--report", "shared", "rec.csv"], tmp_path, capsys,
+            r"--report shared exists, is not empty and is not only this command's efam report: it is the "
+            r"report of 'efam demo', not of 'efam diagnose'")  # fmt: skip
+    assert sorted(p.name for p in (tmp_path / "shared").iterdir()) == before
+    code, _, err = run_cli(["demo", "--out", "shared"], tmp_path, capsys)  # its own command replaces it
+    assert code == 0, err
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_mujoco_log_takes_dev_null_but_not_a_pipe(tmp_path, capsys):
+    """The log is appended to, never renamed over: /dev/null (to discard the warnings) was refused
+    with a message about renaming; a pipe is refused (opening it would wait for a reader)."""
+    code, out, err = run_cli(
+        ["--mujoco-log", os.devnull, "muscle", "FAM1", "--pressures-kPa", "100"], tmp_path, capsys
+    )
+    assert code == 0, err
+    os.mkfifo(tmp_path / "pipe")
+    run_bad(["--mujoco-log", "pipe", "muscle", "FAM1"], tmp_path, capsys,
+            r"--mujoco-log pipe is a pipe or a socket: opening it for the log would wait for a reader")  # fmt: skip

@@ -305,13 +305,13 @@ def test_a_never_pressurised_file_gets_no_unit_hint(tmp_path, capsys):
             2,
             1e6,
             "pressure-range",
-            r"\[pressure-range\].*pressure 1000 MPa cannot be physical for any fluidic muscle",
+            r"\[pressure-range\].*pressure 1000 MPa at line \d+ cannot be physical for any fluidic muscle",
         ),
         (
             1,
             100.0,
             "length-range",
-            r"\[length-range\].*length 100 m cannot be physical for any fluidic muscle",
+            r"\[length-range\].*length 100 m at line \d+ cannot be physical for any fluidic muscle",
         ),
     ],
 )

@@ -327,3 +327,10 @@ def test_the_built_in_catalogue_still_loads():
     # the paper's Kevlar sleeve: D_45 1.905 cm by the project's convention, drawn tight on 2.22 cm
     kevlar = [s for s in load_catalogue().sleeves if "Kevlar" in s.name]
     assert kevlar and kevlar[0].reference_diameter_m < kevlar[0].min_diameter_m
+
+
+@pytest.mark.parametrize("threads", ["0", "100000", "-2", "1.5"])
+def test_threads_are_bounded(tmp_path, capsys, threads):
+    """100000 rollout threads were taken without a word (each holds a copy of MuJoCo's data)."""
+    run_bad(["diagnose-arm", "--model", "arm.json", "--threads", threads, "rec.csv"], tmp_path, capsys,
+            r"argument --threads: ")  # fmt: skip

@@ -216,18 +216,18 @@ class ArmSpec:
             )
         if self.mode not in ("segmented", "pcc"):
             raise ValueError(f"arm: mode must be 'segmented' or 'pcc', got {self.mode!r}")
-        checks = {
-            "pressure_tau_s": self.pressure_tau_s >= 0,
-            "max_pressure_Pa": self.max_pressure_Pa > 0,
-            "payload_kg": self.payload_kg >= 0,
-            "timestep_s": self.timestep_s is None or self.timestep_s > 0,
-            "axial_viscosity_N_s": self.axial_viscosity_N_s >= 0,
-            "bend_viscosity_N_m2_s": self.bend_viscosity_N_m2_s >= 0,
+        checks = {  # key: (holds, what it must be)
+            "pressure_tau_s": (self.pressure_tau_s >= 0, "a time constant >= 0 s"),
+            "max_pressure_Pa": (self.max_pressure_Pa > 0, "a pressure > 0 Pa"),
+            "payload_kg": (self.payload_kg >= 0, "a mass >= 0 kg"),
+            "timestep_s": (self.timestep_s is None or self.timestep_s > 0, "a time step > 0 s"),
+            "axial_viscosity_N_s": (self.axial_viscosity_N_s >= 0, "a damping >= 0 N s"),
+            "bend_viscosity_N_m2_s": (self.bend_viscosity_N_m2_s >= 0, "a damping >= 0 N m^2 s"),
         }
-        for key, ok in checks.items():
+        for key, (ok, what) in checks.items():
             value = getattr(self, key)
             if not ((value is None or math.isfinite(value)) and ok):
-                raise ValueError(f"arm: {key} is invalid: {getattr(self, key)!r}")
+                raise ValueError(f"arm: {key} must be {what} (finite), got {float(value):g}")
             if value is not None:
                 _within(value, key, ARM_BOUNDS, "arm")
         for key in ("gravity", "hold_tip"):

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import bounded_int
 from ..files import (
     check_replaceable_folder,
     replace_folder,
@@ -19,6 +20,10 @@ from .diagnosis import ArmDiagnosis, diagnose_arm
 from .recording import read_csv
 from .replay import Replayer
 from .specfile import load_arm_model
+
+#: rollout threads at most: each holds a MuJoCo data copy; more than a large machine's cores
+#: only costs memory (100000 were taken without a word)
+MAX_THREADS = 256
 
 
 def _mm(x) -> str:
@@ -150,7 +155,10 @@ def register_cli(subparsers) -> None:
     p.add_argument(
         "--report", type=Path, help="directory: report.txt, diagnosis.json, arm_identified.xml, figures"
     )
-    p.add_argument("--threads", type=int, default=None, help="rollout threads (default: the usable cores)")
+    p.add_argument(
+        "--threads", type=bounded_int(1, MAX_THREADS), default=None,
+        help=f"rollout threads, 1 .. {MAX_THREADS} (default: the usable cores)",
+    )  # fmt: skip
     p.set_defaults(
         run=run,
         file_inputs=("recording", "model"),
@@ -184,19 +192,17 @@ def referenced_muscle_files(args) -> dict[str, list[str]]:
 def run(args) -> int:
     """Run ``efam diagnose-arm`` with parsed arguments; returns the exit status."""
     if args.report:  # replaced as a whole: refused now, not after the diagnosis, if not ours
-        check_replaceable_folder(args.report, "--report")
+        check_replaceable_folder(args.report, "--report", "diagnose-arm")
     spec = load_arm_model(args.model)
     muscles = [a.name for a in spec.actuators]
     rec = read_csv(args.recording, muscles)
-    if args.threads is not None and args.threads < 1:
-        raise ValueError(f"--threads must be >= 1, got {args.threads}")
     d = diagnose_arm(spec, rec, threads=args.threads)
     report = text(d)
     print(report)
     if args.json:
         write_json(args.json, d)
     if args.report:  # built beside, swapped in whole (files.replace_folder), as efam diagnose's
-        with replace_folder(args.report, "--report") as staging:
+        with replace_folder(args.report, "--report", "diagnose-arm") as staging:
             write_text_atomic(staging / "report.txt", report + "\n")
             write_json(staging / "diagnosis.json", d)
             write_model(staging / "arm_identified.xml", spec, d)

@@ -300,7 +300,7 @@ def run(args) -> int:
     from ..recordings import read_for_fit
 
     if args.report:
-        check_replaceable_folder(args.report, "--report")
+        check_replaceable_folder(args.report, "--report", "diagnose")
     muscle = load_muscle(args.muscle)
     if args.tension_only:
         muscle = replace(muscle, tension_only=True)
@@ -315,7 +315,7 @@ def run(args) -> int:
         outputs.json(args.json, d.to_json())
     if args.report:
         directory = Path(args.report)
-        with replace_folder(directory, "--report") as staging:
+        with replace_folder(directory, "--report", "diagnose") as staging:
             (staging / "report.txt").write_text(report)
             (staging / "rig_with_effects.xml").write_text(rig_with_effects(d))
             if args.json is None:

@@ -20,7 +20,7 @@ from ..musclefile import (
     parse_json_text,
     read_small_file,
 )
-from ..units import UnitError, is_control, read_quantity, split_unit
+from ..units import UnitError, is_control, json_shown, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.catalogue/1"
 
@@ -187,7 +187,7 @@ def _number(block: dict, key: str, where: str, kind: str | None = None) -> float
         raise CatalogueError(f"{where}: missing key '{key}'")
     value = block.get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise CatalogueError(f"{where}: key '{key}' must be a finite number, got {value!r}")
+        raise CatalogueError(f"{where}: key '{key}' must be a finite number, got {json_shown(value)}")
     quantity = "density" if kind == "density" else ""
     return _in_range(float(value), block, key, where, kind or key, quantity)
 
