@@ -22,6 +22,7 @@ the two must agree. Any key may use another unit of the same quantity (``rest_le
 from __future__ import annotations
 
 import copy
+import errno
 import json
 import math
 import os
@@ -202,6 +203,19 @@ def parse_json_text(data: bytes, label: str) -> object:
         raise MuscleFileError(f"{label}: not valid JSON: nested too deeply") from None
 
 
+def _why_link_fails(path: Path) -> str:
+    """Why the link ``path`` leads to no file: it loops back on itself, or its target is missing
+    (a loop was called "a broken link")."""
+    try:
+        path.resolve(strict=True)
+    except RuntimeError:  # pathlib's word for a loop before Python 3.13
+        return "a link that loops back on itself, not a file"
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            return "a link that loops back on itself, not a file"
+    return "no such file (a broken link: what it points to does not exist)"
+
+
 def read_small_file(path: str | Path, what: str, max_bytes: int = MAX_FILE_BYTES) -> tuple[bytes, str]:
     """The bytes of a small input file (``what``: "a muscle file", "an arm spec file") and its label,
     refused, naming it, when it is a folder, not a regular file (a pipe would block, /dev/zero
@@ -213,7 +227,7 @@ def read_small_file(path: str | Path, what: str, max_bytes: int = MAX_FILE_BYTES
             raise MuscleFileError(f"{label}: is a folder, not {what}")
         if not path.exists():
             raise MuscleFileError(
-                f"{label}: no such file" + (" (a broken link)" if path.is_symlink() else "")
+                f"{label}: " + (_why_link_fails(path) if path.is_symlink() else "no such file")
             )
         if not path.is_file():
             raise MuscleFileError(f"{label}: not a regular file (a pipe or a device?), not {what}")

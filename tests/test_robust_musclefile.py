@@ -362,3 +362,18 @@ def test_free_length_at_real_pressures_is_unchanged_by_the_check():
     m = load_muscle("FAM1")
     assert m.free_length(0.0) == pytest.approx(m.rest_length_m)
     assert m.free_length(-101325.0) <= m.rest_length_m <= m.free_length(4e5)
+
+
+def test_a_link_loop_is_not_called_a_broken_link(tmp_path):
+    """A symlink loop given as a muscle file was called "a broken link"; a dangling link is one."""
+    from efam_mujoco.musclefile import read_small_file
+
+    (tmp_path / "a.json").symlink_to(tmp_path / "b.json")
+    (tmp_path / "b.json").symlink_to(tmp_path / "a.json")
+    (tmp_path / "dangling.json").symlink_to(tmp_path / "gone.json")
+    with pytest.raises(MuscleFileError, match=r"a\.json: a link that loops back on itself, not a file"):
+        read_small_file(tmp_path / "a.json", "a muscle file")
+    with pytest.raises(
+        MuscleFileError, match=r"dangling\.json: no such file \(a broken link: what it points to"
+    ):
+        read_small_file(tmp_path / "dangling.json", "a muscle file")
