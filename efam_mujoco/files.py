@@ -64,18 +64,6 @@ def output_target(path: str | os.PathLike, label: str = "output") -> Path:
     return target
 
 
-def _check_log_target(path: Path) -> None:
-    """``--mujoco-log`` is appended to, never renamed over: a character device (``/dev/null``, to
-    discard the warnings) is fine; a pipe or a socket is refused (opening one to append waits for
-    a reader, and the command would hang)."""
-    target = _link_target(path)
-    if target.exists() and not target.is_file() and not target.is_dir() and not target.is_char_device():
-        raise OutputError(
-            f"--mujoco-log {path} is a pipe or a socket: opening it for the log would wait for a reader; "
-            "give a file name (or /dev/null to discard the warnings)"
-        )
-
-
 def _temporary_beside(path: Path, suffix: str = "") -> tuple[int, Path]:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -325,9 +313,7 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
                 f"{label} {out}: an existing {out.suffix} file (a recording?) would be replaced by this "
                 "command's output; give the output a name of its own (.json, .xml)"
             )
-        if label == "--mujoco-log":
-            _check_log_target(out)
-        elif label not in FOLDER_OUTPUTS:
+        if label not in FOLDER_OUTPUTS and label != "--mujoco-log":  # the log: check_log_target
             output_target(out, label)  # before the work: not a device, a pipe or a socket
         if label in FIGURE_OUTPUTS:
             check_figure_path(label, out)
@@ -487,6 +473,7 @@ def _umask() -> int:
 
 # ------------------------------------------------------------------------------ MuJoCo log
 _log_target: list = [None]
+_log_lead: list[str] = [""]  # a newline before the first warning, when the log's last line has none
 _collectors: list[list[str]] = []
 
 
@@ -496,13 +483,16 @@ def route_mujoco_log(path: str | os.PathLike | None = None) -> None:
     import mujoco
 
     if path is not None:
-        refuse_data_file_as_log(path)
+        check_log_target(path)
         try:  # found now, not as warnings silently lost later: a missing folder, no permission
             with open(path, "a", encoding="utf-8"):
                 pass
         except OSError as err:
             raise OutputError(f"--mujoco-log {path}: cannot append to it ({err.strerror})") from None
     _log_target[0] = None if path is None else Path(path)
+    # a log whose last line has no newline keeps it: the first warning starts a line of its own
+    # (every warning then ends with one)
+    _log_lead[0] = "\n" if path is not None and _ends_without_newline(Path(path)) else ""
     mujoco.set_mju_user_warning(_mujoco_warning)
 
 
@@ -511,12 +501,20 @@ def route_mujoco_log(path: str | os.PathLike | None = None) -> None:
 NOT_A_LOG_SUFFIXES = ("csv", "tsv", "json", "xml", "mjb", "npz", "npy", "yaml", "yml", "toml", "py", "so")
 
 
-def refuse_data_file_as_log(path: str | os.PathLike) -> None:
-    """Refuse ``--mujoco-log`` naming an existing file that holds data rather than a log: one
-    with a data, model or figure suffix, whose text opens as JSON or XML does (``{``, ``[``,
-    ``<``), or whose first line is a table's header, whatever its name. Appending a warning to it
-    would corrupt it. A new file, an empty one, or a plain text log is fine."""
+def check_log_target(path: str | os.PathLike) -> None:
+    """Refuse a ``--mujoco-log`` target the log cannot be appended to safely. It is appended to,
+    never renamed over: a character device (``/dev/null``, to discard the warnings) is fine, a
+    pipe or a socket is refused (opening one to append waits for a reader, and the command would
+    hang). An existing file that holds data rather than a log is refused: one with a data, model
+    or figure suffix, whose text opens as JSON or XML does (``{``, ``[``, ``<``), or whose first
+    line is a table's header, whatever its name; appending a warning to it would corrupt it. A
+    new file, an empty one, or a plain text log is fine."""
     target = _link_target(path)
+    if target.exists() and not target.is_file() and not target.is_dir() and not target.is_char_device():
+        raise OutputError(
+            f"--mujoco-log {path} is a pipe or a socket: opening it for the log would wait for a reader; "
+            "give a file name (or /dev/null to discard the warnings)"
+        )
     if not target.is_file() or target.stat().st_size == 0:
         return
     suffix = target.suffix.lower().lstrip(".")
@@ -545,10 +543,9 @@ def _mujoco_warning(message: str) -> None:
         print(f"MuJoCo warning: {text}", file=sys.stderr)
         return
     try:
-        # a log whose last line has no newline keeps it: the warning starts its own line
-        lead = "\n" if _ends_without_newline(target) else ""
         with open(target, "a", encoding="utf-8") as handle:
-            handle.write(lead + text + "\n")
+            handle.write(_log_lead[0] + text + "\n")
+        _log_lead[0] = ""
     except OSError as err:  # the log went away or filled up: the warning still reaches the user
         print(
             f"MuJoCo warning: {text} (not written to --mujoco-log {target}: {err.strerror})", file=sys.stderr

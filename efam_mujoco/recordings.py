@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from .files import write_text_atomic
+from .muscle import SIZE_RANGE_M
 from .units import LENGTH, PRESSURE, QUANTITIES, TIME, UnitError, factor, split_unit, unit_that_fits
 
 
@@ -987,7 +988,7 @@ def _force_scale(F, model, blocked) -> float | None:
 #: either is refused even with ``--allow pressure-range`` / ``length-range``, which are for a
 #: rating or a range exceeded, not for a gigapascal or a hundred metres.
 MAX_PRESSURE_PA = 100e6
-MAX_LENGTH_M = 10.0
+MAX_LENGTH_M = SIZE_RANGE_M[1]
 
 
 def _mark_impossible(rec: Recording, src: str, found: list[Finding]) -> list[Finding]:

@@ -22,6 +22,9 @@ CONTROLLED_TASKS = ("reach", "reach_payload", "track")
 MAX_SEED = 2**32 - 1
 #: Episodes per policy at most: about a second each, so hours of work; a score needs hundreds.
 MAX_EPISODES = 10_000
+#: the defaults of --episodes and --seed (``--list`` refuses a value other than these: it runs none)
+DEFAULT_EPISODES = 10
+DEFAULT_SEED = 0
 
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,12 +36,12 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
         "--task", default=None, help="task name (default reach; with --list: only tasks of that name)"
     )
     parser.add_argument(
-        "--episodes", type=bounded_int(1, MAX_EPISODES), default=10,
-        help=f"seeded episodes per policy, 1 .. {MAX_EPISODES} (default 10)",
+        "--episodes", type=bounded_int(1, MAX_EPISODES), default=DEFAULT_EPISODES,
+        help=f"seeded episodes per policy, 1 .. {MAX_EPISODES} (default {DEFAULT_EPISODES})",
     )  # fmt: skip
     parser.add_argument(
-        "--seed", type=bounded_int(0, MAX_SEED, "numpy's seed range"), default=0,
-        help=f"seed of the first episode, 0 .. {MAX_SEED}; episode i uses seed + i (default 0)",
+        "--seed", type=bounded_int(0, MAX_SEED, "numpy's seed range"), default=DEFAULT_SEED,
+        help=f"seed of the first episode, 0 .. {MAX_SEED}; episode i uses seed + i (default {DEFAULT_SEED})",
     )  # fmt: skip
     parser.add_argument(
         "--strip",
@@ -108,7 +111,10 @@ def _run(args) -> int:
         ignored = [f for f, v in (("--json", args.json), ("--strip", args.strip)) if v is not None]
         ignored += [
             f
-            for f, v, default in (("--episodes", args.episodes, 10), ("--seed", args.seed, 0))
+            for f, v, default in (
+                ("--episodes", args.episodes, DEFAULT_EPISODES),
+                ("--seed", args.seed, DEFAULT_SEED),
+            )
             if v != default
         ]
         if ignored:  # a list runs no episode and writes nothing: said, not dropped without a word
