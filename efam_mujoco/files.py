@@ -56,6 +56,11 @@ def output_target(path: str | os.PathLike, label: str = "output") -> Path:
     root replaced the system's /dev/null)."""
     path = Path(path)
     target = _link_target(path)
+    # a link the kernel resolves but realpath cannot (/dev/stdout on a pipe: /proc/self/fd/1 ->
+    # 'pipe:[123]') is judged by what it opens, not by a name that does not exist: the work was
+    # done and then 'cannot write /proc/.../pipe:[123]'
+    if path.is_symlink() and path.exists() and not target.exists():
+        target = path
     if target.exists() and not target.is_file() and not target.is_dir():
         raise OutputError(
             f"{label} {path} is not a regular file (a device, a pipe or a socket): outputs are written to a "
@@ -64,10 +69,24 @@ def output_target(path: str | os.PathLike, label: str = "output") -> Path:
     return target
 
 
+#: the most of an output's name a temporary beside it repeats: a name near the file system's limit
+#: (255 bytes) is a good output name, but '.NAME.XXXXXXXX.efam-tmp' beside it was not one
+TEMPORARY_NAME_KEEP = 100
+
+
+def _temporary_prefix(name: str) -> str:
+    """``.NAME.`` for a temporary beside the output ``NAME``, ``NAME`` cut to
+    :data:`TEMPORARY_NAME_KEEP` bytes (never inside a character)."""
+    kept = name.encode("utf-8", "surrogateescape")[:TEMPORARY_NAME_KEEP].decode("utf-8", "ignore")
+    return f".{kept}."
+
+
 def _temporary_beside(path: Path, suffix: str = "") -> tuple[int, Path]:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".efam-tmp{suffix}", dir=path.parent)
+        fd, name = tempfile.mkstemp(
+            prefix=_temporary_prefix(path.name), suffix=f".efam-tmp{suffix}", dir=path.parent
+        )
     except OSError as err:  # the user's path, not the temporary's name nobody asked for
         raise OutputError(f"cannot write {path} ({err.strerror or err})") from None
     return fd, Path(name)
@@ -269,6 +288,7 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
     outs = [(label, Path(p)) for label, v in outputs.items() for p in _paths(v)]
     package = installed_package_dirs()
     for i, (label, out) in enumerate(outs):
+        _check_name_length(label, out)  # first: a name too long makes every stat of it raise
         if not str(out).strip() or str(out) in (".", ".."):
             if label not in FOLDER_OUTPUTS:
                 raise OutputError(f"{label}: '{out}' is not a file name")
@@ -315,6 +335,7 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
             )
         if label not in FOLDER_OUTPUTS and label != "--mujoco-log":  # the log: check_log_target
             output_target(out, label)  # before the work: not a device, a pipe or a socket
+        _check_not_in_a_report(label, out)
         if label in FIGURE_OUTPUTS:
             check_figure_path(label, out)
         _check_writable_place(label, out)
@@ -335,6 +356,45 @@ def _check_writable_place(label: str, out: Path) -> None:
             if not os.access(parent, os.W_OK | os.X_OK):
                 raise OutputError(f"{label} {out}: cannot write into {parent} (permission denied)")
             return
+
+
+def _check_name_length(label: str, out: Path) -> None:
+    """Refuse a path with a name longer than its file system takes (255 bytes on most): found
+    before the work, not when the first output is written after it."""
+    limit = 255
+    for parent in [out.parent, *out.parent.parents]:
+        try:
+            limit = os.pathconf(parent, "PC_NAME_MAX")
+            break
+        except (OSError, ValueError, AttributeError):  # not there (yet), or no such limit
+            continue
+    for part in out.parts:
+        size = len(os.fsencode(part))
+        if size > limit:
+            raise OutputError(
+                f"{label} {out}: the name '{part[:40]}...' is {size} bytes long; the file system takes "
+                f"names of at most {limit} bytes"
+            )
+
+
+def _check_not_in_a_report(label: str, out: Path) -> None:
+    """Refuse an output inside an existing efam report folder (one that holds the
+    :data:`REPORT_MARKER`): the file made the folder the user's, and the next run of the command
+    that wrote the report refused to replace it (``--json rep/x.json`` after ``diagnose --report
+    rep``); over one of the report's files it edited the report. A report folder output may be
+    such a folder itself (it is replaced whole); ``--models-dir`` writes files into it."""
+    target = _link_target(out)
+    for folder in target.parents if label != "--models-dir" else [target, *target.parents]:
+        try:
+            marked = (folder / REPORT_MARKER).is_file()
+        except OSError:  # a folder we may not look into: the write itself will say so
+            marked = False
+        if marked:
+            raise OutputError(
+                f"{label} {out} is inside the efam report folder {folder}, which its command replaces "
+                "as a whole (the file would be lost, or stop the report from being replaced); give a "
+                "path outside it"
+            )
 
 
 def _paths(value) -> list:
@@ -447,14 +507,16 @@ def replace_folder(path: str | os.PathLike, label: str = "output folder", comman
     """
     path = check_replaceable_folder(path, label, command)
     path.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".efam-tmp", dir=path.parent))
+    staging = Path(tempfile.mkdtemp(prefix=_temporary_prefix(path.name), suffix=".efam-tmp", dir=path.parent))
     try:
         yield staging
         _write_marker(staging, command)
         os.chmod(staging, 0o777 & ~_umask())
         old = None
         if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".efam-old", dir=path.parent))
+            old = Path(
+                tempfile.mkdtemp(prefix=_temporary_prefix(path.name), suffix=".efam-old", dir=path.parent)
+            )
             os.rmdir(old)
             os.replace(path, old)
         os.replace(staging, path)

@@ -956,7 +956,9 @@ def check_plausibility(
     return findings
 
 
-FORCE_UNITS = {**QUANTITIES["force"], "mN": 1e-3}
+#: the force units a hint may offer: exactly those a header may carry (``force_mN`` was offered for
+#: a load cell in mN, and then refused as an unknown unit)
+FORCE_UNITS = QUANTITIES["force"]
 
 
 #: ... judged only where the model force is at least this share of the blocked force at the

@@ -15,7 +15,7 @@ import unicodedata
 # factor that converts a value in the suffix unit into the SI unit of its quantity
 PRESSURE = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "psi": 6894.757293168361}
 LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "in": 0.0254}
-FORCE = {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605}
+FORCE = {"N": 1.0, "kN": 1e3, "mN": 1e-3, "lbf": 4.4482216152605}
 TIME = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
 ANGLE = {"rad": 1.0, "deg": math.pi / 180.0}
 VOLUME = {"m3": 1.0, "L": 1e-3, "cm3": 1e-6, "mL": 1e-6}

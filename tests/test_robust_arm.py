@@ -617,3 +617,21 @@ def test_an_arm_key_out_of_range_says_what_it_must_be(key, value, what):
     """'arm: payload_kg is invalid: -1' said neither what nor in which unit it had to be."""
     with pytest.raises(ValueError, match=rf"arm: {key} must be {what} \(finite\), got (-?[0-9.]+|nan)"):
         arm.ArmSpec(sections=(arm.paper_section(),), **{key: value})
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        # a known muscle written without its unit was 'no muscle of that name in the arm model'
+        ("p_s1m1_kPa", "p_s1m1", r"column 2 \('p_s1m1'\): no unit; write e\.g\. 'p_s1m1_kPa'"),
+        # a time column without its unit was told to write 'time_m' (metres)
+        ("time_s", "Time", r"column 1 \('Time'\): no unit; write e\.g\. 'time_s'"),
+        # 'timestamp_s' was read as a time in the unit 'tamp_s'
+        ("time_s", "timestamp_s", r"column 1 \('timestamp_s'\): unknown column \(accepted: time_<unit>"),
+    ],
+)
+def test_an_arm_header_without_its_unit_is_named_as_such(lab, tmp_path, old, new, words):
+    text = write_csv(tmp_path / "plain.csv", lab[3]).read_text()
+    (tmp_path / "bad.csv").write_text(text.replace(old, new, 1))
+    with pytest.raises(ArmRecordingError, match=rf"bad\.csv: line 1, {words}"):
+        read_csv(tmp_path / "bad.csv", lab[3].muscles)

@@ -974,3 +974,96 @@ def test_mujoco_log_takes_dev_null_but_not_a_pipe(tmp_path, capsys):
     os.mkfifo(tmp_path / "pipe")
     run_bad(["--mujoco-log", "pipe", "muscle", "FAM1"], tmp_path, capsys,
             r"--mujoco-log pipe is a pipe or a socket: opening it for the log would wait for a reader")  # fmt: skip
+
+
+# ------------------------------------------------------------ second outside sweep (outputs)
+def test_an_output_name_longer_than_the_file_system_takes_is_refused_before_the_work(tmp_path, capsys):
+    """A 300-byte --json name failed after the work with 'cannot write ... (File name too long)';
+    the message now names the flag and the limit, before anything runs."""
+    name = "x" * 300 + ".json"
+    run_bad(["muscle", "FAM1", "--json", name], tmp_path, capsys,
+            r"--json x+\.json: the name 'x{40}\.\.\.' is 305 bytes long; the file system takes names of at "
+            r"most \d+ bytes")  # fmt: skip
+    # in a folder that does not exist yet too (judged by the nearest folder that does)
+    run_bad(["muscle", "FAM1", "--json", f"new/{name}"], tmp_path, capsys, r"is 305 bytes long")
+    assert not (tmp_path / "new").exists()
+
+
+def test_an_output_name_near_the_file_systems_limit_is_written(tmp_path, capsys):
+    """A 250-byte name is a good name, but its temporary '.NAME.XXXXXXXX.efam-tmp' was not one:
+    the command did its work and then said 'File name too long'."""
+    name = "y" * 245 + ".json"
+    code, _, err = run_cli(["muscle", "FAM1", "--pressures-kPa", "100", "--json", name], tmp_path, capsys)
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+    assert strict_load(tmp_path / name)["name"] == "FAM1"
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="no /proc here")
+def test_an_output_through_a_link_to_a_pipe_is_refused_before_the_work(tmp_path, capsys):
+    """--json /dev/stdout on a pipe (/proc/self/fd/1 -> 'pipe:[123]', a name realpath cannot
+    follow) was taken for a new file: the work was done, then 'cannot write
+    /proc/123/fd/pipe:[456] (No such file or directory)'."""
+    read_end, write_end = os.pipe()
+    try:
+        target = f"/proc/self/fd/{write_end}"
+        run_bad(["muscle", "FAM1", "--json", target], tmp_path, capsys,
+                rf"--json {re.escape(target)} is not a regular file \(a device, a pipe or a socket\)")  # fmt: skip
+    finally:
+        os.close(read_end)
+        os.close(write_end)
+
+
+def test_an_output_inside_an_existing_report_folder_is_refused(tmp_path, capsys):
+    """`efam muscle --json rep/x.json` after `efam diagnose --report rep` wrote into the report: the
+    next `diagnose --report rep` refused the folder as the user's ('x.json is not a file the report
+    wrote'); over the report's own file it edited the report. The log and --models-dir too."""
+    with replace_folder(tmp_path / "rep", command="diagnose") as staging:
+        (staging / "report.txt").write_text("a report\n")
+    said = r"is inside the efam report folder rep, which its command replaces as a whole"
+    run_bad(["muscle", "FAM1", "--json", "rep/x.json"], tmp_path, capsys, r"--json rep/x\.json " + said)
+    run_bad(["muscle", "FAM1", "--json", "rep/report.txt"], tmp_path, capsys, said)
+    run_bad(
+        ["--mujoco-log", "rep/log.txt", "muscle", "FAM1"],
+        tmp_path,
+        capsys,
+        r"--mujoco-log rep/log\.txt " + said,
+    )
+    run_bad(["arm", "--write-models", "--models-dir", "rep"], tmp_path, capsys, r"--models-dir rep " + said)
+    run_bad(["demo", "--out", "rep/inner"], tmp_path, capsys, r"--out rep/inner " + said)
+    # the report folder itself is still replaced by its own command's output flag, and a file
+    # beside it is written
+    code, _, err = run_cli(
+        ["muscle", "FAM1", "--pressures-kPa", "100", "--json", "beside.json"], tmp_path, capsys
+    )
+    assert code == 0, err
+
+
+def test_install_plugin_never_installs_inside_the_package(tmp_path, capsys):
+    """`efam install-plugin --dir efam_mujoco/presets` put the library among the presets (nothing is
+    written inside the package folder); its own folder is still 'nothing to install there'."""
+    import efam_mujoco
+
+    package = Path(efam_mujoco.__file__).resolve().parent
+    before = sorted(p.name for p in (package / "presets").iterdir())
+    try:
+        run_bad(["install-plugin", "--dir", package / "presets"], tmp_path, capsys,
+                r"--dir .*presets: is inside the efam_mujoco package .*; give a folder outside it")  # fmt: skip
+        assert sorted(p.name for p in (package / "presets").iterdir()) == before
+    finally:  # a failing run must not leave a library among the presets
+        for path in (package / "presets").iterdir():
+            if path.name not in before:
+                path.unlink()
+    code, out, err = run_cli(["install-plugin", "--dir", package / "plugin"], tmp_path, capsys)
+    assert code == 0 and "nothing to install there" in out, err
+
+
+@pytest.mark.parametrize("command", ["arm", "suite"])
+def test_a_commands_description_is_not_cut_mid_sentence(command):
+    """`efam arm --help` ended its description '... under pressures and compare the' (the first
+    line of the module's docstring); `efam suite --help` '... and the random baseline,'."""
+    import argparse
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    description = sub.choices[command].description
+    assert description.rstrip().endswith("."), description

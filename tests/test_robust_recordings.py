@@ -561,3 +561,20 @@ def test_no_unit_is_offered_under_which_the_time_base_is_still_impossible():
                     np.linspace(10, 40, n), {"source": "ns.csv", "columns": ["time_s", "length_m", "pressure_Pa", "force_N"]})  # fmt: skip
     found = [f for f in check_plausibility([rec], load_muscle("FAM1")) if f.check == "time-unit"]
     assert found and "column 'time_s'" in found[0].message and "fit" not in found[0].message
+
+
+def test_a_force_unit_offered_by_a_hint_is_one_a_header_takes(tmp_path, capsys):
+    """Forces in mN under 'force_N' were told "the numbers fit 'force_mN'", and a file with that
+    header was then refused: "unknown force unit 'mN' (known: N, kN, lbf)"."""
+    run_bad(["calibrate", "--muscle", "FAM1", _write(tmp_path, scaled(3, 1000.0), "mN_as_N.csv")],
+            tmp_path, capsys, r"\[force-range\].*the numbers fit 'force_mN'")  # fmt: skip
+    path = _write(tmp_path, scaled(3, 1000.0, "time_s,length_m,pressure_kPa,force_mN"), "mN.csv")
+    np.testing.assert_allclose(read_csv(path).force_N, good_rows()[:, 3], rtol=1e-8)
+    assert not check_plausibility([read_csv(path)], load_muscle("FAM1"))
+
+
+def test_an_empty_figures_prefix_is_said_to_be_empty(tmp_path, capsys):
+    """`efam calibrate --figures ''` fitted and wrote no figure, without a word."""
+    path = _write(tmp_path, good_text())
+    run_bad(["calibrate", "--muscle", "FAM1", "--stress", "linear", path, "--figures", ""], tmp_path, capsys,
+            r"efam calibrate: error: --figures: an empty file name")  # fmt: skip

@@ -369,7 +369,7 @@ def register_cli(subparsers) -> None:
     parser = subparsers.add_parser(
         "arm",
         help="build a continuum arm; its tip at rest under pressures, MuJoCo vs continuum reference",
-        description=__doc__.splitlines()[0],
+        description=__doc__.split("\n\n")[0],  # the first paragraph: its first line ended mid-sentence
     )
     _add_arguments(parser)
     parser.set_defaults(

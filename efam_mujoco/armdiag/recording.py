@@ -161,7 +161,7 @@ def _classify(name: str, muscles: list[str], label: str, line: int, column: int)
         unit = name[len(base) + 1 :]
         if not unit:
             raise ArmRecordingError(
-                f"{where}: no unit; write e.g. '{base}_{ {'pressure': 'kPa'}.get(quantity, 'm') }'"
+                f"{where}: no unit; write e.g. '{base}_{ {'pressure': 'kPa', 'time': 's'}.get(quantity, 'm') }'"
             )
         try:
             return factor(unit, quantity, where)
@@ -171,12 +171,13 @@ def _classify(name: str, muscles: list[str], label: str, line: int, column: int)
     # the quantity is read in any case, as loggers write it (Time_s, P_s1m1_kPa, TIP_X_m); the
     # muscle's name and the unit exactly as written (a muscle 'A' is not 'a', mPa is not MPa)
     low = name.lower()
-    if low.startswith("time"):
+    if low == "time" or low.startswith("time_"):  # 'timestamp_s' is no time unit 'tamp_s'
         return "time", None, unit_of("time", "time")
     for prefix, role in (("pm_", "measured"), ("p_", "command")):
         if low.startswith(prefix):
             for m in sorted(muscles, key=len, reverse=True):
-                if name[len(prefix) :].startswith(f"{m}_"):
+                # 'p_s1m1' (no unit) is the muscle s1m1 without its unit, not an unknown muscle
+                if name[len(prefix) :] == m or name[len(prefix) :].startswith(f"{m}_"):
                     return role, m, unit_of(f"{prefix}{m}", "pressure")
             raise ArmRecordingError(
                 f"{where}: no muscle of that name in the arm model (muscles: {', '.join(muscles)})"

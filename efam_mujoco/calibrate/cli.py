@@ -85,6 +85,8 @@ def run(args) -> int:
         raise OutputError(
             f"--out {args.out}: is a folder, not a file; give a file name (e.g. {Path(args.out) / 'muscle.json'})"
         )
+    if args.figures is not None and not str(args.figures).strip():  # '' wrote no figure, silently
+        raise OutputError("--figures: an empty file name (give the figures' path prefix, e.g. figs/fam1)")
     if args.figures:
         # a prefix, not a folder: '--figures figs/' wrote 'figs/_blocked.png', '--figures .' the
         # hidden '._blocked.png'

@@ -56,8 +56,9 @@ def _same_file(a: str, b: str) -> bool:
         return False
 
 
-def _target_dir(directory: str | None) -> str:
-    """The folder to act in, checked: ``--dir`` names a folder (or one to create), not a file."""
+def _target_dir(directory: str | None, installing: bool = True) -> str:
+    """The folder to act in, checked: ``--dir`` names a folder (or one to create), not a file;
+    installing, not one inside the efam_mujoco package."""
     if directory is None:
         return mujoco_plugin_dir()
     target_dir = os.fspath(directory)
@@ -70,6 +71,16 @@ def _target_dir(directory: str | None) -> str:
         )
     if os.path.lexists(target_dir) and not os.path.isdir(target_dir):
         raise InstallError(f"--dir {target_dir}: exists and is not a folder")
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    where = os.path.realpath(target_dir)
+    library_dir = os.path.dirname(os.path.realpath(os.path.join(package, "plugin", LIBRARY_FILE)))
+    inside = os.path.commonpath([where, os.path.realpath(package)]) == os.path.realpath(package)
+    if installing and inside and where != library_dir:
+        # nothing is written inside the package folder (its presets are inputs): '--dir
+        # efam_mujoco/presets' put a library among them; the library's own folder is said below
+        raise InstallError(
+            f"--dir {target_dir}: is inside the efam_mujoco package ({package}); give a folder outside it"
+        )
     return target_dir
 
 
@@ -114,7 +125,7 @@ def remove(directory: str | None = None) -> tuple[list[str], list[str]]:
     if directory is None:
         paths = installed_copies()
     else:
-        path = os.path.join(_target_dir(directory), LIBRARY_FILE)
+        path = os.path.join(_target_dir(directory, installing=False), LIBRARY_FILE)
         paths = [path] if os.path.lexists(path) else []
     removed, kept = [], []
     for path in paths:

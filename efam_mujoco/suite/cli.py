@@ -171,7 +171,7 @@ def register_cli(subparsers) -> None:
     parser = subparsers.add_parser(
         "suite",
         help="dm_control tasks on EFAM bundles and arms: score the controller and a random baseline",
-        description=__doc__.splitlines()[0],
+        description=__doc__.split("\n\n")[0],  # the first paragraph: its first line ended mid-sentence
     )
     _add_arguments(parser)
     parser.set_defaults(run=_run, file_outputs=("json", "strip"))
