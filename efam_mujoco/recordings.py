@@ -1105,8 +1105,10 @@ def add_recording_arguments(parser) -> None:
         help="bad CSV rows: stop with an error, or drop them and report which",
     )  # fmt: skip
     parser.add_argument(
-        "--allow", nargs="+", default=[], metavar="CHECK", choices=tuple(CHECKS),
-        help="continue past these failed plausibility checks with a named warning: "
+        # extend: '--allow a --allow b' allows both (a plain list kept only the last, silently)
+        "--allow", nargs="+", action="extend", default=[], metavar="CHECK", choices=tuple(CHECKS),
+        help="continue past these failed plausibility checks with a named warning (the flag may be "
+        "repeated): "
         + "; ".join(f"{k}: {v}" for k, v in CHECKS.items()) + " (default: none, every check is an error)",
     )  # fmt: skip
     parser.add_argument(

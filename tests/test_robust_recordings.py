@@ -411,6 +411,19 @@ def test_allow_turns_an_error_into_a_named_warning():
         enforce_plausibility(findings, allow=["bogus"])
 
 
+def test_allow_given_twice_allows_both():
+    """'--allow force-range --allow time-unit' kept only time-unit, silently."""
+    import argparse
+
+    from efam_mujoco.recordings import add_recording_arguments
+
+    parser = argparse.ArgumentParser()
+    add_recording_arguments(parser)
+    args = parser.parse_args(["--allow", "force-range", "--allow", "time-unit", "length-unit"])
+    assert args.allow == ["force-range", "time-unit", "length-unit"]
+    assert parser.parse_args([]).allow == []  # the default list is not shared between parses
+
+
 def read_csv_text(text, tmp=None):
     import tempfile
     from pathlib import Path
