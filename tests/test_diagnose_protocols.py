@@ -27,6 +27,7 @@ from efam_mujoco.diagnose.confidence import (
     paired_z,
     separation,
     verdict,
+    why_ambiguous,
 )
 from efam_mujoco.diagnose.design import candidates, recommend, unabsorbed
 from efam_mujoco.diagnose.effects import BraidCompliance, Context, EffectModel, Viscoelasticity
@@ -385,6 +386,34 @@ def test_two_effects_are_ambiguous_only_when_the_paired_test_cannot_separate_the
     v = verdict({"a": 0.7, "b": 0.3}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=apart,
                 dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
     assert v.answer == "a" and not v.ambiguous and v.tentative and "tentative" in v.words()
+
+
+def test_an_ambiguity_says_why_the_two_are_not_told_apart():
+    # the report says which of three reasons holds: both fits at the noise floor (no analysis
+    # of this file can separate them), an effect too weak for the model alone, or a difference
+    # in held-out RMS that sits in a few blocks; nothing when the verdict is not ambiguous
+    rng = np.random.default_rng(2)
+    base = 1 + 0.1 * rng.random(40)
+    close = {"none": base * 3, "a": base, "b": base * (1 + 0.02 * rng.normal(size=40))}
+    v = verdict({"a": 0.55, "b": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=close,
+                dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    assert v.ambiguous
+
+    def fits(ha, ca, hb, cb):
+        return [
+            dict(name="a", heldout_rms_N=ha, excess_cut=ca),
+            dict(name="b", heldout_rms_N=hb, excess_cut=cb),
+        ]
+
+    floor = why_ambiguous(v, fits(0.742, 0.98, 0.7421, 0.97), 1.2, 0.73)
+    assert "both fits reach the noise floor (0.730 N)" in floor and "differ by 0.01%" in floor
+    few = why_ambiguous(v, fits(0.70, 0.95, 0.76, 0.85), 1.2, 0.60)
+    assert "differ by 8.6%" in few and "a few of them" in few
+    weak = dataclasses.replace(v, contenders=["none", "b"])
+    said = why_ambiguous(weak, fits(0.70, 0.95, 1.17, 0.4), 1.2, 1.1)
+    assert "b lowers the held-out RMS from 1.200 N to 1.170 N (2.5%" in said and "model alone" in said
+    assert why_ambiguous(dataclasses.replace(v, contenders=["a", OUTSIDE]), fits(1, 1, 1, 1), 1.2, 1.0) == ""
+    assert why_ambiguous(dataclasses.replace(v, ambiguous=False), fits(1, 1, 1, 1), 1.2, 1.0) == ""
 
 
 def test_a_term_ahead_of_the_library_but_mostly_doubted_is_reported_unresolved_first():

@@ -38,6 +38,7 @@ from .confidence import (
     insample_supported,
     paired_z,
     verdict,
+    why_ambiguous,
 )
 from .datadriven import Corrected, Correction, correction
 from .design import recommend, stroke_speed
@@ -126,6 +127,14 @@ class Diagnosis:
             "length sensor's scale) is taken up there too and then not reported. Measure the braid angle to tell"
         )
 
+    def ambiguity_reason(self) -> str:
+        """Why an ambiguous answer's two contenders are not told apart ('' otherwise): both fits at
+        the noise floor, an effect too weak to tell from the model alone, or a difference that sits
+        in a few blocks (``confidence.why_ambiguous``)."""
+        if self.verdict is None:
+            return ""
+        return why_ambiguous(self.verdict, self.candidates, self.heldout_rms_before_N, self.noise_N)
+
     @property
     def answer(self) -> str:
         """The most probable hypothesis: an effect name, ``none`` or ``outside_library``."""
@@ -176,6 +185,7 @@ class Diagnosis:
             "sources": self.sources,
             "structure": self.structure,
             "verdict": self.verdict.to_json() if self.verdict else None,
+            "ambiguity_reason": self.ambiguity_reason(),
             "datadriven_correction": self.correction.to_json() if self.correction else None,
             "unexplained": _jsonable(self.unexplained),
             "next_experiment": _jsonable(self.next_experiment),

@@ -419,6 +419,48 @@ class Verdict:
         }  # fmt: skip
 
 
+#: an ambiguity is said to be at the noise floor when both contenders take at least this share
+#: of the model's held-out excess over the noise and their held-out RMS differ by at most
+#: ``SAME_HELDOUT``: no score of the fits can then separate them (13 of the 31 ambiguous
+#: isometric recordings of the stop-52 samples; docs/diagnosis.md)
+FLOOR_SHARE = 0.9
+SAME_HELDOUT = 0.02
+
+
+def why_ambiguous(v: Verdict, candidates: list[dict], heldout_before_N: float, noise_N: float) -> str:
+    """Why the two contenders of an ambiguous verdict are not told apart, in one sentence for
+    the report ('' when the verdict is not ambiguous or a contender is outside the library).
+    ``candidates``: the single-effect fits (``name``, ``heldout_rms_N``, ``excess_cut``);
+    ``none`` is the model alone, whose held-out RMS is ``heldout_before_N``."""
+    if not v.ambiguous or OUTSIDE in v.contenders[:2] or len(v.contenders) < 2:
+        return ""
+    fits = {c["name"]: (c["heldout_rms_N"], c["excess_cut"]) for c in candidates}
+    fits["none"] = (heldout_before_N, 0.0)
+    a, b = v.contenders[:2]
+    if a not in fits or b not in fits:
+        return ""
+    (ha, ca), (hb, cb) = fits[a], fits[b]
+    apart = abs(ha - hb) / max(min(ha, hb), 1e-12)
+    if "none" in (a, b):
+        effect, h = (b, hb) if a == "none" else (a, ha)
+        return (
+            f"Why: {effect} lowers the held-out RMS from {heldout_before_N:.3f} N to {h:.3f} N "
+            f"({1.0 - h / max(heldout_before_N, 1e-12):.1%}; noise floor {noise_N:.3f} N): too little, or "
+            "too unevenly over the test's blocks, to tell it from the model alone."
+        )
+    if min(ca, cb) >= FLOOR_SHARE and apart <= SAME_HELDOUT:
+        return (
+            f"Why: both fits reach the noise floor ({noise_N:.3f} N): {a} takes {ca:.0%} and {b} {cb:.0%} of the "
+            f"model's held-out excess over it, and their held-out RMS differ by {apart:.2%} ({ha:.3f} N and "
+            f"{hb:.3f} N). No analysis of this recording can separate them; a new test can."
+        )
+    where = f" (paired z {v.separation_z:+.1f}, under {Z_SEPARATE:.0f})" if v.separation_z is not None else ""
+    return (
+        f"Why: their held-out RMS differ by {apart:.1%} ({a} {ha:.3f} N, {b} {hb:.3f} N), but not consistently "
+        f"over the test's blocks{where}: the difference sits in a few of them."
+    )
+
+
 def outside_supported(dd_gain: float, dd_z: float | None, excess_left: float | None) -> bool:
     """Whether 'outside the library' may compete on top of a hypothesis: its data-driven
     correction lowers the held-out RMS materially (``DD_MIN_GAIN``) and significantly (paired
