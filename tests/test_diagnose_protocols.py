@@ -375,16 +375,20 @@ def test_clean_low_rate_strokes_through_regulator_transients_raise_no_alarm(seed
     assert not d.verdict.outside_supported
 
 
+def _pair_verdict(b_over_a, raw):
+    """The verdict on 40 blocks where hypothesis b's held-out errors are a's times ``b_over_a``
+    (and the model alone's three times a's), the bootstrap's shares ``raw``."""
+    base = 1 + 0.1 * np.random.default_rng(2).random(40)
+    sse = {"none": base * 3, "a": base, "b": base * b_over_a}
+    return verdict(raw, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=sse,
+                   dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+
+
 def test_two_effects_are_ambiguous_only_when_the_paired_test_cannot_separate_them():
-    rng = np.random.default_rng(2)
-    base = 1 + 0.1 * rng.random(40)
-    close = {"none": base * 3, "a": base, "b": base * (1 + 0.02 * rng.normal(size=40))}
-    v = verdict({"a": 0.55, "b": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=close,
-                dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    close = 1 + 0.02 * np.random.default_rng(3).normal(size=40)
+    v = _pair_verdict(close, {"a": 0.55, "b": 0.45})
     assert v.ambiguous and set(v.contenders) == {"a", "b"}
-    apart = {"none": base * 3, "a": base, "b": base * 1.5}
-    v = verdict({"a": 0.7, "b": 0.3}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=apart,
-                dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    v = _pair_verdict(1.5, {"a": 0.7, "b": 0.3})
     assert v.answer == "a" and not v.ambiguous and v.tentative and "tentative" in v.words()
 
 
@@ -392,11 +396,7 @@ def test_an_ambiguity_says_why_the_two_are_not_told_apart():
     # the report says which of three reasons holds: both fits at the noise floor (no analysis
     # of this file can separate them), an effect too weak for the model alone, or a difference
     # in held-out RMS that sits in a few blocks; nothing when the verdict is not ambiguous
-    rng = np.random.default_rng(2)
-    base = 1 + 0.1 * rng.random(40)
-    close = {"none": base * 3, "a": base, "b": base * (1 + 0.02 * rng.normal(size=40))}
-    v = verdict({"a": 0.55, "b": 0.45}, excess_cut=0.9, dd_gain=0.0, n_blocks=40, block_sse=close,
-                dd_z=0.0, dd_z_none=0.0, excess_left=0.0)  # fmt: skip
+    v = _pair_verdict(1 + 0.02 * np.random.default_rng(3).normal(size=40), {"a": 0.55, "b": 0.45})
     assert v.ambiguous
 
     def fits(ha, ca, hb, cb):
