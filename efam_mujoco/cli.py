@@ -172,6 +172,15 @@ def _file_args(args) -> tuple[dict, dict]:
     return inputs, outputs
 
 
+def _json_flags(args) -> tuple[str, ...]:
+    """The output flags of this command that write JSON: every ``--json``, and those a command
+    declares (``set_defaults(json_outputs=("out",))``: calibrate's muscle file)."""
+    from .files import JSON_OUTPUTS
+
+    declared = getattr(args, "json_outputs", None) or ()
+    return (*JSON_OUTPUTS, *("--" + name.replace("_", "-") for name in declared))
+
+
 def check_argument_bounds(args) -> None:
     """Refuse a value outside the bounds a command declares (``parser.set_defaults(
     argument_bounds={dest: (low, high, unit)})``; a flag the command does not have is skipped),
@@ -200,13 +209,13 @@ _WHOLE = re.compile(r"[+-]?\d+", re.ASCII)
 def plain_float(text: str) -> float:
     """An argparse type: a finite number written as a plain ASCII decimal (``0.5``, ``-2e3``).
     Python's ``float`` also reads ``1_000``, other scripts' digits (``７５``), ``nan`` and
-    ``inf``, none of which a user means as a pressure or a length."""
+    ``inf``, none of which a user means as a pressure or a length. ``-0`` reads as 0."""
     if not _DECIMAL.fullmatch(text.strip()):
         raise argparse.ArgumentTypeError(f"takes a plain decimal number (like 0.5 or 2e3), got {text!r}")
     value = float(text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"takes a finite number, got {text!r}")
-    return value
+    return value + 0.0  # '-0' is 0: a negative zero printed as '-0.0' in every table and JSON
 
 
 def plain_int(text: str) -> int:
@@ -281,7 +290,7 @@ def _main(argv: list[str] | None) -> int:
     command = f"efam {args.command}"
     try:
         inputs, outputs = _file_args(args)
-        check_outputs(outputs, inputs)
+        check_outputs(outputs, inputs, json_outputs=_json_flags(args))
         check_argument_bounds(args)
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line

@@ -272,17 +272,36 @@ FOLDER_OUTPUTS = ("--out", "--report", "--models-dir")
 FOLDER_ONLY_OUTPUTS = ("--report", "--models-dir")
 #: data files an output never replaces, even when they are not the command's inputs
 DATA_SUFFIXES = (".csv", ".tsv")
+#: the output flags that write JSON whatever their name (every command's ``--json``; a command adds
+#: its others, such as calibrate's ``--out`` muscle file, through ``set_defaults(json_outputs=...)``)
+JSON_OUTPUTS = ("--json",)
 #: the preset muscles' names as a user types them (``musclefile.PRESETS``, lower case): an output
 #: of that bare name is refused, as it would shadow the preset in the folder it is written to
 PRESET_NAMES = ("fam1", "fam2")
 
 
-def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
+def check_json_name(label: str, path: str | os.PathLike) -> None:
+    """Refuse a JSON output named like a recording (``--json out.csv``): the readers take any
+    file with a data suffix (:data:`DATA_SUFFIXES`) for a recording, so a later command read the
+    JSON as one. A name without a suffix, or with any other, is the user's choice."""
+    suffix = Path(path).suffix
+    if suffix.lower() in DATA_SUFFIXES:
+        raise OutputError(
+            f"{label} {path}: writes JSON, but '{suffix}' is a recording's suffix (a later command would "
+            f"read the file as a recording); give it a .json name (e.g. {Path(path).with_suffix('.json')})"
+        )
+
+
+def check_outputs(
+    outputs: dict[str, object], inputs: dict[str, object], json_outputs: tuple[str, ...] = JSON_OUTPUTS
+) -> None:
     """Refuse outputs that would overwrite an input or each other, or land in the package.
 
     ``outputs`` and ``inputs`` map a label the user knows (a CLI flag: ``--json``, ``FILE``) to
     a path or a list of paths (None entries are ignored). For an output folder (``--report``)
-    an input inside it is refused too, because the folder is replaced as a whole.
+    an input inside it is refused too, because the folder is replaced as a whole. The outputs
+    labelled in ``json_outputs`` write JSON: one named like a recording is refused
+    (:func:`check_json_name`).
     """
     ins = [(label, Path(p)) for label, v in inputs.items() for p in _paths(v)]
     outs = [(label, Path(p)) for label, v in outputs.items() for p in _paths(v)]
@@ -333,6 +352,8 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
                 f"{label} {out}: an existing {out.suffix} file (a recording?) would be replaced by this "
                 "command's output; give the output a name of its own (.json, .xml)"
             )
+        if label in json_outputs:
+            check_json_name(label, out)
         if label not in FOLDER_OUTPUTS and label != "--mujoco-log":  # the log: check_log_target
             output_target(out, label)  # before the work: not a device, a pipe or a socket
         _check_not_in_a_report(label, out)
@@ -546,7 +567,10 @@ def route_mujoco_log(path: str | os.PathLike | None = None) -> None:
 
     if path is not None:
         check_log_target(path)
-        try:  # found now, not as warnings silently lost later: a missing folder, no permission
+        try:  # found now, not as warnings silently lost later: no permission
+            # a missing folder is made, as for every other output (check_outputs has checked that
+            # its nearest existing ancestor is a folder we may write into)
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
             with open(path, "a", encoding="utf-8"):
                 pass
         except OSError as err:

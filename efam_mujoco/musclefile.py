@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import PRESET_NAMES, strict_json, write_json_atomic
+from .files import PRESET_NAMES, check_json_name, strict_json, write_json_atomic
 from .muscle import (
     DEFAULT_LOCK_STIFFNESS,
     MAX_DEADBAND_PA,
@@ -719,11 +719,12 @@ def save_muscle(path: str | Path, muscle: Muscle, laws: dict[str, StressLaw] | N
     """Write a muscle file atomically (a failed write never leaves a half file). The document
     is read back through the file reader's checks first: a muscle the reader would refuse (a
     1 deg braid, a dead band above the rated pressure) is an error here, not a file that every
-    later command refuses."""
+    later command refuses. A name with a recording's suffix (``.csv``) is refused."""
     if not isinstance(muscle, Muscle):
         raise TypeError(
             f"save_muscle(path, muscle, ...): muscle must be a Muscle, got {type(muscle).__name__}"
         )
+    check_json_name("save_muscle", path)
     doc = muscle_document(muscle, laws, **extra)
     muscle_from_document(json.loads(strict_json(doc)), f"save_muscle({str(path)!r})")
     return write_json_atomic(path, doc)

@@ -5,6 +5,7 @@ checks. Each bad input ends in a clear error, no traceback, no data loss, no str
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -754,13 +755,14 @@ def test_muscle_json_is_strict_and_complete(folder, capsys):
 
 
 def test_mujoco_log_that_cannot_be_written_is_not_silent(tmp_path, capsys):
-    """A log in a missing folder is refused before the work; a log that fails while writing (a
-    full disk) still shows the warning on standard error instead of dropping it."""
+    """A log whose folder cannot be made (a file is in its way) is refused before the work (a
+    missing folder is made, as for every output); a log that fails while writing (a full disk)
+    still shows the warning on standard error instead of dropping it."""
     from efam_mujoco import files
 
-    missing = tmp_path / "no_such_folder" / "mujoco.log"
-    code, _, err = run_cli(["--mujoco-log", str(missing), "muscle", "FAM1"], tmp_path, capsys)
-    assert code == 2 and "cannot append to it" in err and not missing.parent.exists()
+    (tmp_path / "notes.txt").write_text("the user's notes\n")
+    run_bad(["--mujoco-log", "notes.txt/mujoco.log", "muscle", "FAM1"], tmp_path, capsys,
+            r"--mujoco-log notes\.txt/mujoco\.log: notes\.txt is a file, not a folder")  # fmt: skip
     if Path("/dev/full").exists():
         try:
             files.route_mujoco_log("/dev/full")
@@ -1067,3 +1069,71 @@ def test_a_commands_description_is_not_cut_mid_sentence(command):
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     description = sub.choices[command].description
     assert description.rstrip().endswith("."), description
+
+
+# ------------------------------------------------- a third sweep: JSON named as data, log folders, -0
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["muscle", "FAM1", "--json", "out.csv"], "--json out.csv"),
+        (["muscle", "FAM1", "--json", "out.TSV"], "--json out.TSV"),
+        (["calibrate", "rec.csv", "--muscle", "FAM1", "--out", "m.csv"], "--out m.csv"),
+        (["calibrate", "rec.csv", "--muscle", "FAM1", "--out", "m.json", "--json", "c.tsv"], "--json c.tsv"),
+        (["diagnose", "rec.csv", "--muscle", "FAM1", "--json", "d.csv"], "--json d.csv"),
+        (["arm", "--pressures-kPa", "0", "0", "0", "--json", "a.csv"], "--json a.csv"),
+        (["suite", "--json", "s.csv"], "--json s.csv"),
+    ],
+)
+def test_a_json_output_named_like_a_recording_is_refused(folder, capsys, argv, flag):
+    """`efam muscle FAM1 --json out.csv` (a new file) wrote JSON under a recording's name, which a
+    later command read as a recording; calibrate's --out muscle file likewise."""
+    stem = flag.split()[1].rsplit(".", 1)[0]
+    run_bad(argv, folder, capsys, rf"{re.escape(flag)}: writes JSON, but '\.\w+' is a recording's suffix",
+            rf"give it a \.json name \(e\.g\. {stem}\.json\)")  # fmt: skip
+
+
+@pytest.mark.parametrize("name", ["table", "table.txt", "table.JSON", "table.csv.json"])
+def test_a_json_output_of_any_other_name_is_still_written(folder, capsys, name):
+    code, _, err = run_cli(["muscle", "FAM1", "--pressures-kPa", "100", "--json", name], folder, capsys)
+    assert code == 0, err
+    assert strict_load(folder / name)["rows"][0]["pressure_kPa"] == 100.0
+
+
+def test_the_python_api_refuses_a_muscle_or_arm_json_named_like_a_recording(tmp_path):
+    from efam_mujoco import arm
+    from efam_mujoco.armdiag import save_spec
+    from efam_mujoco.musclefile import save_muscle
+
+    with pytest.raises(OutputError, match=r"save_muscle .*m\.csv: writes JSON.*e\.g\. .*m\.json"):
+        save_muscle(tmp_path / "m.csv", load_muscle("FAM1"))
+    with pytest.raises(OutputError, match=r"save_spec .*a\.tsv: writes JSON"):
+        save_spec(tmp_path / "a.tsv", arm.ArmSpec(sections=(arm.paper_section(disks=2),)))
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_mujoco_log_gets_its_missing_folder_like_every_other_output(tmp_path, capsys):
+    """`--mujoco-log newdir/log.txt` was refused ('cannot append to it') while `--json
+    nodir/x.json` made its folder."""
+    code, _, err = run_cli(
+        ["--mujoco-log", "newdir/sub/log.txt", "muscle", "FAM1", "--pressures-kPa", "100",
+         "--json", "nodir/x.json"], tmp_path, capsys,
+    )  # fmt: skip
+    assert code == 0, err
+    assert (tmp_path / "newdir" / "sub" / "log.txt").is_file() and (tmp_path / "nodir" / "x.json").is_file()
+
+
+def test_number_flags_read_a_negative_zero_as_zero(tmp_path, capsys):
+    """`--pressures-kPa -0` was printed as '-0.0' in the table and the JSON."""
+    from efam_mujoco.cli import plain_float
+
+    for text in ("-0", "-0.0", "-0e5", "-.0"):
+        value = plain_float(text)
+        assert value == 0.0 and math.copysign(1.0, value) == 1.0, text
+    code, out, err = run_cli(
+        ["muscle", "FAM1", "--pressures-kPa", "-0", "--json", "t.json"], tmp_path, capsys
+    )
+    assert code == 0, err
+    assert "-0.0" not in out and re.search(r"^\s+0\.0\s", out, re.MULTILINE), out
+    assert "-0.0" not in (tmp_path / "t.json").read_text()
+    code, out, err = run_cli(["arm", "--disks", "2", "--pressures-kPa", "-0", "0", "-0.0"], tmp_path, capsys)
+    assert code == 0 and "-0" not in out, err

@@ -745,3 +745,60 @@ def test_a_constant_force_column_is_called_dead_without_a_unit_hint(tmp_path, ca
     err = run_bad(["calibrate", "one.csv", "--muscle", "FAM1", "--out", "m.json"], tmp_path, capsys,
                   r"one\.csv: columns 'length_m' and 'pressure_psi' are both constant: nothing was tested")  # fmt: skip
     assert "expects a range of 0 N" not in err, err
+
+
+# ------------------------------------------------------- scripts reading the shared data folder
+SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
+
+
+def _script(name: str, argv, cwd: Path, **env_vars):
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("EFAM_SHARED_DIR", "EFAM_FESTO_DATA")}
+    env.update(EFAM_PROGRESS="0", MPLBACKEND="Agg", **env_vars)
+    return subprocess.run([sys.executable, str(SCRIPTS / name), *argv], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "script, argv",
+    [("festo_calibrate.py", ["--quick", "--out", "r.json", "--figure", "f.png"]),
+     ("festo_diagnose.py", ["--no-figures", "--only", "none"])],
+)  # fmt: skip
+@pytest.mark.parametrize("variable", ["EFAM_FESTO_DATA", "EFAM_SHARED_DIR"])
+def test_a_data_folder_named_on_purpose_but_without_the_data_is_an_error(tmp_path, script, argv, variable):
+    """With $EFAM_FESTO_DATA (or $EFAM_SHARED_DIR) set to an existing folder that is not the data
+    folder, the scripts said 'skipped, ... is absent' and exited 0; only the default ../shared,
+    absent, is skipped."""
+    wrong = tmp_path / "not_the_data"
+    (wrong / "recordings").mkdir(parents=True)  # one of the two: the other is named as missing
+    done = _script(script, argv, tmp_path, **{variable: str(wrong)})
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "Traceback" not in done.stderr and "skipped" not in done.stdout
+    assert f"${variable} = {wrong}" in done.stderr, done.stderr
+    if variable == "EFAM_FESTO_DATA":
+        assert "is not the Festo DMSP data folder: it has no recordings.json;" in done.stderr, done.stderr
+    else:  # the data's folder inside the shared folder is not there at all
+        assert f"its Festo data folder {wrong}/data/real/festo_dmsp does not exist" in done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["not_the_data"]
+
+
+def test_the_default_shared_folder_absent_is_still_skipped_cleanly(tmp_path):
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import shared_data; "
+        "from pathlib import Path; shared_data.CHECKOUT = Path(sys.argv[2]) / 'checkout'; "
+        "import festo_calibrate; sys.exit(festo_calibrate.main(['--quick', '--out', 'r.json']))"
+    )
+    env = {
+        k: v for k, v in __import__("os").environ.items() if k not in ("EFAM_SHARED_DIR", "EFAM_FESTO_DATA")
+    }
+    done = subprocess.run([sys.executable, "-c", code, str(SCRIPTS), str(tmp_path)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("festo_calibrate: skipped, ") and "is absent" in done.stdout
+    assert not (tmp_path / "r.json").exists()

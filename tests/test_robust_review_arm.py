@@ -334,3 +334,72 @@ def test_threads_are_bounded(tmp_path, capsys, threads):
     """100000 rollout threads were taken without a word (each holds a copy of MuJoCo's data)."""
     run_bad(["diagnose-arm", "--model", "arm.json", "--threads", threads, "rec.csv"], tmp_path, capsys,
             r"argument --threads: ")  # fmt: skip
+
+
+# ------------------------------------------- the spec's pressure key in any unit; angles in one turn
+@pytest.mark.parametrize(
+    "key, value", [("max_pressure_Pa", 517106.8), ("max_pressure_kPa", 517.1068), ("max_pressure_psi", 75.0),
+                   ("max_pressure_bar", 5.171068), ("max_pressure_MPa", 0.5171068)],
+)  # fmt: skip
+def test_an_arm_spec_takes_its_top_pressure_in_any_pressure_unit(tmp_path, key, value):
+    """`max_pressure_kPa` was 'unknown key(s)' while a muscle file takes any pressure unit in a key's
+    name."""
+    doc = _spec_doc()
+    del doc["max_pressure_Pa"]
+    doc[key] = value
+    spec = load_spec(_write(tmp_path / "arm.json", doc))
+    assert spec.max_pressure_Pa == pytest.approx(517106.8, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        ({"max_pressure_kpa": 500}, r"key 'max_pressure_kpa': unknown pressure unit 'kpa' \(known: .*kPa.*\); "
+                                    r"units are case-sensitive: did you mean 'kPa'\?"),
+        ({"max_pressure_atm": 5}, r"key 'max_pressure_atm': unknown pressure unit 'atm'"),
+        ({"max_pressure": 500}, r"key 'max_pressure' has no unit; write e\.g\. 'max_pressure_Pa'"),
+        ({"max_pressure_kPa": 500, "max_pressure_psi": 75}, r"max_pressure given twice"),
+        ({"max_pressure_kPa": "500"}, r"key 'max_pressure_kPa' must be a finite number, got \"500\""),
+        ({"max_pressure_kPa": 20000}, r"key 'max_pressure_kPa' = 20000 is outside 1e-12 \.\. 10000 kPa"),
+        ({"max_pressure_psi": 2}, r"key 'max_pressure_psi' = 2 psi is within every muscle's dead band "
+                                  r"\(the lowest, FAM1's, ends at 4\.876 psi\)"),
+    ],
+)  # fmt: skip
+def test_an_arm_spec_pressure_key_is_read_as_strictly_as_a_muscle_files(tmp_path, extra, words):
+    doc = _spec_doc()
+    del doc["max_pressure_Pa"]
+    doc.update(extra)
+    path = _write(tmp_path / "arm.json", doc)
+    with pytest.raises(ArmModelError, match=rf"^{re.escape(str(path))}: {words}"):
+        load_spec(path)
+
+
+def test_diagnose_arm_names_an_unknown_pressure_unit_in_the_spec(tmp_path, capsys):
+    doc = _spec_doc()
+    doc["max_pressure_KPA"] = doc.pop("max_pressure_Pa") / 1e3
+    _write(tmp_path / "arm.json", doc)
+    (tmp_path / "rec.csv").write_text(HEAD + "\n0,100,100,100,0,0,0.2\n0.1,100,100,100,0,0,0.2\n")
+    run_bad(["diagnose-arm", "--model", "arm.json", "--threads", "1", "rec.csv"], tmp_path, capsys,
+            r"arm\.json: key 'max_pressure_KPA': unknown pressure unit 'KPA'.*did you mean 'kPa'\?")  # fmt: skip
+
+
+@pytest.mark.parametrize("angle", [1e308, -1e308, 360.5, -720.0])
+def test_an_arm_spec_angle_beyond_one_turn_is_refused_when_read(tmp_path, angle):
+    """`angles_deg` [0, 1e308, 240] was read and failed later on 'muscles 0 and 1 overlap'."""
+    doc = _spec_doc()
+    doc["sections"][0]["angles_deg"] = [0.0, angle, 240.0]
+    path = _write(tmp_path / "arm.json", doc)
+    with pytest.raises(ArmModelError) as err:
+        load_spec(path)
+    assert str(err.value) == (
+        f"{path}: sections[0]: section: angles_deg[1] = {angle!r} is outside -360 .. 360 deg (a muscle's "
+        "angular position around the section's axis)"
+    )
+    with pytest.raises(ValueError, match=r"angles_deg\[1\] = .* is outside -360 \.\. 360 deg"):
+        arm.paper_section(disks=2, angles_deg=(0.0, angle, 240.0))
+
+
+def test_an_arm_spec_angle_within_one_turn_either_way_is_still_read(tmp_path):
+    doc = _spec_doc()
+    doc["sections"][0]["angles_deg"] = [-360.0, -240.0, 360.0 - 120.0]
+    assert load_spec(_write(tmp_path / "arm.json", doc)).sections[0].angles_deg == (-360.0, -240.0, 240.0)

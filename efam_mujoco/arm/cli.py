@@ -332,14 +332,15 @@ def _run(args) -> int:
     if args.pressures_kPa:
         sizes = np.cumsum([len(s.muscles) for s in spec.sections])[:-1]
         result = equilibrium(spec, np.split(pressures, sizes))
-        mujoco_mm = np.round(1e3 * np.array(result["tip_mujoco_m"]), 2)
+        # '+ 0.0': a coordinate a hair below zero is shown as 0, not '-0.'
+        mujoco_mm = np.round(1e3 * np.array(result["tip_mujoco_m"]), 2) + 0.0
         if result["tip_continuum_m"] is None:
             print(f"tip at rest, base frame (mm): MuJoCo {mujoco_mm}, continuum reference: did not converge")
             print(f"warning: {result['continuum_error']}", file=sys.stderr)
         else:
             print(
                 f"tip at rest, base frame (mm): MuJoCo {mujoco_mm}, "
-                f"continuum reference {np.round(1e3 * np.array(result['tip_continuum_m']), 2)}; "
+                f"continuum reference {np.round(1e3 * np.array(result['tip_continuum_m']), 2) + 0.0}; "
                 f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
             )
             if not result["agreement"]["agree"]:

@@ -57,6 +57,8 @@ SECTION_BOUNDS = {
     "plate_mass_kg": (0.0, 50.0, "kg"),
     "disk_mass_kg": (0.0, 50.0, "kg"),
 }
+#: a muscle's angular position around a section's axis, ``(low, high, unit)``: one turn either way
+ANGLE_BOUNDS_DEG = (-360.0, 360.0, "deg")
 ARM_BOUNDS = {
     "pressure_tau_s": (0.0, 10.0, "s"),
     "max_pressure_Pa": (1e-9, 10e6, "Pa"),
@@ -122,6 +124,13 @@ class SectionSpec:
                 self, "angles_deg", tuple(360.0 * i / len(muscles) for i in range(len(muscles)))
             )
         angles = tuple(_finite(a, f"angles_deg[{i}]") for i, a in enumerate(self.angles_deg))
+        low, high, unit = ANGLE_BOUNDS_DEG
+        for i, a in enumerate(angles):  # 1e308 deg was read, then said to 'overlap'
+            if not low <= a <= high:
+                raise ValueError(
+                    f"section: angles_deg[{i}] = {self.angles_deg[i]!r} is outside {low:g} .. {high:g} {unit} "
+                    "(a muscle's angular position around the section's axis)"
+                )
         object.__setattr__(self, "angles_deg", angles)
         if len(angles) != len(muscles):
             raise ValueError(f"section: {len(muscles)} muscles but {len(angles)} angles_deg")

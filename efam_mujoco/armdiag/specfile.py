@@ -11,16 +11,19 @@ with the arm)::
                    "end_mass_kg": null, "body_mass_kg": null, "plate_mass_kg": 0.0,
                    "muscles": [<muscle document>, ...]}]}
 
-A muscle entry may also be a preset name (``"FAM1"``). ``"timestep_s": null`` (the default)
-lets the builder choose the step from the arm's physics (``arm/timestep.py``: 1 ms for the
-default damped arm at D = 8); a number is used as given (refused beyond the arm's stability
-limit, with a warning when within less than its margin).
+The pressure key takes any pressure unit in its name, as a muscle file's keys do
+(``max_pressure_kPa``, ``_psi``, ``_bar``, ``_MPa``; an unknown unit is an error naming the key).
+``angles_deg`` are within -360 .. 360 deg. A muscle entry may also be a preset name (``"FAM1"``).
+``"timestep_s": null`` (the default) lets the builder choose the step from the arm's physics
+(``arm/timestep.py``: 1 ms for the default damped arm at D = 8); a number is used as given
+(refused beyond the arm's stability limit, with a warning when within less than its margin).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import fields
 from pathlib import Path
 
@@ -29,8 +32,10 @@ import numpy as np
 
 from .. import plugin
 from ..arm import ArmSpec, SectionSpec, build_spec
-from ..files import write_json_atomic
+from ..arm.spec import ARM_BOUNDS
+from ..files import check_json_name, write_json_atomic
 from ..musclefile import MuscleFileError, check_text, load_muscle, muscle_document, muscle_from_document
+from ..units import PRESSURE, PressureUnitWarning, UnitError, read_quantity, split_unit
 
 FORMAT = "efam_mujoco.arm_spec/1"
 _SECTION_KEYS = ("radius_m", "angles_deg", "disks", "end_mass_kg", "body_mass_kg", "plate_mass_kg")
@@ -93,11 +98,54 @@ def _shown_value(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
+#: the arm's pressure key without its unit: ``max_pressure_<unit>``, any pressure unit (as a muscle
+#: file's keys), read in Pa
+_MAX_PRESSURE = "max_pressure"
+
+
+def _max_pressure_in_Pa(doc: dict, label: str) -> tuple[dict, str | None]:
+    """``doc`` with its ``max_pressure_<unit>`` (``_kPa``, ``_psi``, ``_bar``...) read as
+    ``max_pressure_Pa`` (the field of :class:`ArmSpec`), and the key the file wrote (None when
+    it has none). A unit :mod:`efam_mujoco.units` does not know, the key without a unit or given
+    twice, or a value that is not a finite number is an :class:`ArmModelError` naming the key."""
+    keys = [k for k in doc if k == _MAX_PRESSURE or split_unit(k)[0] == _MAX_PRESSURE]
+    if not keys:
+        return doc, None
+    try:
+        value = read_quantity(doc, _MAX_PRESSURE, "pressure", label)
+    except UnitError as err:
+        raise ArmModelError(str(err)) from None
+    doc = {k: v for k, v in doc.items() if k not in keys}
+    doc["max_pressure_Pa"] = value
+    return doc, keys[0]
+
+
+def _check_max_pressure(doc: dict, key: str, sections: list, label: str) -> None:
+    """The checks :class:`ArmSpec` makes of ``max_pressure_Pa``, said in the unit and key the file
+    used (``max_pressure_kPa = 20000 is outside 1e-12 .. 10000 kPa``), not in Pa."""
+    unit = split_unit(key)[1]
+    scale = PRESSURE[unit]
+    value = doc["max_pressure_Pa"] / scale
+    low, high, _ = ARM_BOUNDS["max_pressure_Pa"]
+    if not low <= doc["max_pressure_Pa"] <= high:
+        raise ArmModelError(
+            f"{label}: key '{key}' = {value:.10g} is outside {low / scale:g} .. {high / scale:g} {unit}"
+        )
+    lowest = min((m for s in sections for m in s.muscles), key=lambda m: m.deadband_Pa)
+    if doc["max_pressure_Pa"] <= lowest.deadband_Pa:
+        raise ArmModelError(
+            f"{label}: key '{key}' = {value:.10g} {unit} is within every muscle's dead band (the lowest, "
+            f"{lowest.name or 'a muscle'}'s, ends at {lowest.deadband_Pa / scale:.4g} {unit}): no command could "
+            "inflate a muscle"
+        )
+
+
 def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
     """The :class:`ArmSpec` of a dict written by :func:`spec_to_dict` (clear errors naming the key)."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ArmModelError(f"{label}: key 'format' must be {FORMAT!r}")
     known = {f.name for f in fields(ArmSpec)}
+    doc, pressure_key = _max_pressure_in_Pa(doc, label)
     unknown = sorted(set(doc) - known - {"format"})
     if unknown:
         raise ArmModelError(f"{label}: unknown key(s) {', '.join(unknown)}")
@@ -145,8 +193,13 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
         except (ValueError, TypeError) as err:
             raise ArmModelError(f"{where}: {err}") from None
     kw = {k: doc[k] for k in known - {"sections"} if k in doc}
+    if pressure_key not in (None, "max_pressure_Pa"):
+        _check_max_pressure(doc, pressure_key, built, label)
     try:
-        spec = ArmSpec(sections=tuple(built), **kw)
+        with warnings.catch_warnings():
+            if pressure_key not in (None, "max_pressure_Pa"):  # its unit was written: not a Pa guess
+                warnings.simplefilter("ignore", PressureUnitWarning)
+            spec = ArmSpec(sections=tuple(built), **kw)
     except (ValueError, TypeError) as err:
         raise ArmModelError(f"{label}: {err}") from None
     from ..arm.cli import MAX_DEGREES_OF_FREEDOM, degrees_of_freedom
@@ -160,8 +213,11 @@ def spec_from_dict(doc: dict, label: str = "arm spec") -> ArmSpec:
 
 
 def save_spec(path: str | Path, arm: ArmSpec) -> Path:
-    """Write an arm spec file (JSON) atomically."""
-    return write_json_atomic(path, spec_to_dict(arm))
+    """Write an arm spec file (JSON) atomically; a name with a recording's suffix (``.csv``) is
+    refused."""
+    doc = spec_to_dict(arm)
+    check_json_name("save_spec", path)
+    return write_json_atomic(path, doc)
 
 
 def load_spec(path: str | Path) -> ArmSpec:

@@ -71,7 +71,9 @@ def register_cli(subparsers) -> None:
     p.add_argument("--baseline", action="store_true",
                    help="also run the paper's Nelder-Mead procedure and compare (Eq. 14 and time)")  # fmt: skip
     add_recording_arguments(p)
-    p.set_defaults(run=run, file_inputs=("files", "muscle"), file_outputs=("out", "json"))
+    p.set_defaults(
+        run=run, file_inputs=("files", "muscle"), file_outputs=("out", "json"), json_outputs=("out",)
+    )
 
 
 def figure_paths(prefix) -> list[Path]:
