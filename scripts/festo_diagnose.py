@@ -1,8 +1,7 @@
 """Diagnose real Festo DMSP recordings: what the force-balance model leaves out, on real hardware.
 
 Data: ../shared/data/real/festo_dmsp beside the checkout, or $EFAM_SHARED_DIR (see its README; not part of the package, not shipped).
-Skips cleanly (exit 0, one line) when that folder is absent; $EFAM_SHARED_DIR or $EFAM_FESTO_DATA
-naming a folder without the data is an error (exit 2).
+Skips cleanly (exit 0, one line) when that folder is absent.
 
 Each file holds one contractile McKibben muscle at one fixed length while the pressure steps up to
 ~620 kPa and back down (isometric; the rate of the test is the pressure rate). Every cut length of
@@ -54,7 +53,7 @@ from efam_mujoco.recordings import Recording, drop_report, read_csv
 from efam_mujoco.stress import StressLaw
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from shared_data import festo_dir, festo_override_problem  # noqa: E402
+from shared_data import festo_dir  # noqa: E402
 
 DATA = festo_dir()
 ROOT = Path(__file__).resolve().parents[1]
@@ -230,12 +229,8 @@ def main(argv=None) -> int:
     ap.add_argument("--only", help="diagnose only this muscle (e.g. dmsp10_cut20cm)")
     ap.add_argument("--no-figures", action="store_true")
     args = ap.parse_args(argv)
-    problem = festo_override_problem()  # a folder a variable names on purpose: never "skipped"
-    if problem:
-        print(f"festo_diagnose: error: {problem}", file=sys.stderr)
-        return 2
     if not (DATA / "recordings.json").exists():
-        print(f"skipped: {DATA} is absent (real Festo data are not part of the package)")
+        print(f"skipped: {DATA / 'recordings.json'} is absent (real Festo data are not part of the package)")
         return 0
     meta = json.loads((DATA / "recordings.json").read_text())
     rows = []
