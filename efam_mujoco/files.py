@@ -280,15 +280,17 @@ JSON_OUTPUTS = ("--json",)
 PRESET_NAMES = ("fam1", "fam2")
 
 
-def check_json_name(label: str, path: str | os.PathLike) -> None:
-    """Refuse a JSON output named like a recording (``--json out.csv``): the readers take any
-    file with a data suffix (:data:`DATA_SUFFIXES`) for a recording, so a later command read the
-    JSON as one. A name without a suffix, or with any other, is the user's choice."""
+def check_json_name(label: str, path: str | os.PathLike, content: str = "JSON") -> None:
+    """Refuse a JSON (or XML: ``content``) output named like a recording (``--json out.csv``):
+    the readers take any file with a data suffix (:data:`DATA_SUFFIXES`) for a recording, so a
+    later command read the JSON as one. A name without a suffix, or with any other, is the
+    user's choice."""
     suffix = Path(path).suffix
     if suffix.lower() in DATA_SUFFIXES:
+        own = f".{content.lower()}"
         raise OutputError(
-            f"{label} {path}: writes JSON, but '{suffix}' is a recording's suffix (a later command would "
-            f"read the file as a recording); give it a .json name (e.g. {Path(path).with_suffix('.json')})"
+            f"{label} {path}: writes {content}, but '{suffix}' is a recording's suffix (a later command would "
+            f"read the file as a recording); give it a {own} name (e.g. {Path(path).with_suffix(own)})"
         )
 
 
@@ -354,6 +356,8 @@ def check_outputs(
             )
         if label in json_outputs:
             check_json_name(label, out)
+        if label == "--xml":  # the arm's MJCF
+            check_json_name(label, out, "XML")
         if label not in FOLDER_OUTPUTS and label != "--mujoco-log":  # the log: check_log_target
             output_target(out, label)  # before the work: not a device, a pipe or a socket
         _check_not_in_a_report(label, out)

@@ -1092,6 +1092,12 @@ def test_a_json_output_named_like_a_recording_is_refused(folder, capsys, argv, f
             rf"give it a \.json name \(e\.g\. {stem}\.json\)")  # fmt: skip
 
 
+def test_an_xml_output_named_like_a_recording_is_refused(folder, capsys):
+    """`efam arm --xml a.csv` wrote the MJCF under a recording's name."""
+    run_bad(["arm", "--pressures-kPa", "0", "0", "0", "--xml", "a.csv"], folder, capsys,
+            r"--xml a\.csv: writes XML, but '\.csv' is a recording's suffix", r"give it a \.xml name")  # fmt: skip
+
+
 @pytest.mark.parametrize("name", ["table", "table.txt", "table.JSON", "table.csv.json"])
 def test_a_json_output_of_any_other_name_is_still_written(folder, capsys, name):
     code, _, err = run_cli(["muscle", "FAM1", "--pressures-kPa", "100", "--json", name], folder, capsys)
