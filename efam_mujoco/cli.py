@@ -172,13 +172,14 @@ def _file_args(args) -> tuple[dict, dict]:
     return inputs, outputs
 
 
-def _json_flags(args) -> tuple[str, ...]:
-    """The output flags of this command that write JSON: every ``--json``, and those a command
-    declares (``set_defaults(json_outputs=("out",))``: calibrate's muscle file)."""
-    from .files import JSON_OUTPUTS
+def _formatted_flags(args) -> dict[str, str]:
+    """The output flags of this command whose content has a format, flag -> format: every
+    ``--json`` and ``--xml``, and the JSON outputs a command declares
+    (``set_defaults(json_outputs=("out",))``: calibrate's muscle file)."""
+    from .files import FORMATTED_OUTPUTS
 
     declared = getattr(args, "json_outputs", None) or ()
-    return (*JSON_OUTPUTS, *("--" + name.replace("_", "-") for name in declared))
+    return {**FORMATTED_OUTPUTS, **{"--" + name.replace("_", "-"): "JSON" for name in declared}}
 
 
 def check_argument_bounds(args) -> None:
@@ -290,7 +291,7 @@ def _main(argv: list[str] | None) -> int:
     command = f"efam {args.command}"
     try:
         inputs, outputs = _file_args(args)
-        check_outputs(outputs, inputs, json_outputs=_json_flags(args))
+        check_outputs(outputs, inputs, formatted=_formatted_flags(args))
         check_argument_bounds(args)
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line

@@ -272,9 +272,10 @@ FOLDER_OUTPUTS = ("--out", "--report", "--models-dir")
 FOLDER_ONLY_OUTPUTS = ("--report", "--models-dir")
 #: data files an output never replaces, even when they are not the command's inputs
 DATA_SUFFIXES = (".csv", ".tsv")
-#: the output flags that write JSON whatever their name (every command's ``--json``; a command adds
-#: its others, such as calibrate's ``--out`` muscle file, through ``set_defaults(json_outputs=...)``)
-JSON_OUTPUTS = ("--json",)
+#: the output flags whose content has a format whatever their name, flag -> format (every
+#: command's ``--json``, the arm's MJCF ``--xml``; a command adds its other JSON outputs, such as
+#: calibrate's ``--out`` muscle file, through ``set_defaults(json_outputs=...)``)
+FORMATTED_OUTPUTS = {"--json": "JSON", "--xml": "XML"}
 #: the preset muscles' names as a user types them (``musclefile.PRESETS``, lower case): an output
 #: of that bare name is refused, as it would shadow the preset in the folder it is written to
 PRESET_NAMES = ("fam1", "fam2")
@@ -295,15 +296,15 @@ def check_json_name(label: str, path: str | os.PathLike, content: str = "JSON") 
 
 
 def check_outputs(
-    outputs: dict[str, object], inputs: dict[str, object], json_outputs: tuple[str, ...] = JSON_OUTPUTS
+    outputs: dict[str, object], inputs: dict[str, object], formatted: dict[str, str] = FORMATTED_OUTPUTS
 ) -> None:
     """Refuse outputs that would overwrite an input or each other, or land in the package.
 
     ``outputs`` and ``inputs`` map a label the user knows (a CLI flag: ``--json``, ``FILE``) to
     a path or a list of paths (None entries are ignored). For an output folder (``--report``)
     an input inside it is refused too, because the folder is replaced as a whole. The outputs
-    labelled in ``json_outputs`` write JSON: one named like a recording is refused
-    (:func:`check_json_name`).
+    labelled in ``formatted`` (flag -> "JSON", "XML") write that format: one named like a
+    recording is refused (:func:`check_json_name`).
     """
     ins = [(label, Path(p)) for label, v in inputs.items() for p in _paths(v)]
     outs = [(label, Path(p)) for label, v in outputs.items() for p in _paths(v)]
@@ -354,10 +355,8 @@ def check_outputs(
                 f"{label} {out}: an existing {out.suffix} file (a recording?) would be replaced by this "
                 "command's output; give the output a name of its own (.json, .xml)"
             )
-        if label in json_outputs:
-            check_json_name(label, out)
-        if label == "--xml":  # the arm's MJCF
-            check_json_name(label, out, "XML")
+        if label in formatted:
+            check_json_name(label, out, formatted[label])
         if label not in FOLDER_OUTPUTS and label != "--mujoco-log":  # the log: check_log_target
             output_target(out, label)  # before the work: not a device, a pipe or a socket
         _check_not_in_a_report(label, out)

@@ -48,8 +48,9 @@ def text(d: Diagnosis) -> str:
     if d.verdict is not None:
         out.append("Confidence (held-out block bootstrap, calibrated; see docs/diagnosis.md)")
         out.append("  " + d.verdict.words())
-        if d.ambiguity_reason():
-            out.append("  " + d.ambiguity_reason())
+        why = d.ambiguity_reason()
+        if why:
+            out.append("  " + why)
         if d.next_experiment and d.next_experiment.get("words"):
             out.append("  " + d.next_experiment["words"])
         out.append("")
