@@ -1437,3 +1437,68 @@ def test_the_maps_in_force_are_the_ones_fitted_on_the_stored_calibration_rows():
     assert set(CALIBRATION.effect_offset) == set(fitted["effect_offset"])
     for term, offset in fitted["effect_offset"].items():
         assert CALIBRATION.effect_offset[term] == pytest.approx(offset, abs=5e-4), term
+
+
+def _triangle_strokes_on_a_ringing_load_cell(mass_kg: float, seed: int):
+    """Constant-speed strokes (strain 5-35 %, 4 s each way) at three pressures, 250 Hz, read by a
+    load cell that rings at 6 Hz (damping 0.1) when the carriage's speed reverses. The ring is
+    written here from its impulse response, not from the package: each reversal changes the
+    speed by dv, and the cell adds m dv wn^2 / wd exp(-zeta wn s) sin(wd s), s after it."""
+    muscle = load_muscle("fam1")
+    rest, hz, fn, zeta = muscle.rest_length_m, 250.0, 6.0, 0.1
+    half, lo, hi = 4.0, 0.05, 0.35
+    t = np.arange(0.0, 3 * 3 * 2 * half, 1.0 / hz)
+    phase = (t / half) % 2.0
+    x = lo + (hi - lo) * np.where(phase < 1.0, phase, 2.0 - phase)
+    P = np.array([200e3, 300e3, 400e3])[(t // (6 * half)).astype(int)]
+    L = rest * (1.0 + x)
+    speed = (hi - lo) * rest / half
+    wn = 2 * math.pi * fn
+    wd = wn * math.sqrt(1 - zeta**2)
+    ring = np.zeros_like(t)
+    for k in range(1, int(t[-1] / half) + 1):  # reversals at k * half: +v -> -v, then -v -> +v
+        dv = -2 * speed if k % 2 else 2 * speed
+        s = t - k * half
+        ring += np.where(s > 0, mass_kg * dv * wn**2 / wd * np.exp(-zeta * wn * s) * np.sin(wd * s), 0.0)
+    rng = np.random.default_rng(seed)
+    force = muscle.push(P, L) - ring + rng.normal(0.0, 0.3, t.size)
+    recording = Recording(t, L + rng.normal(0.0, 2e-6, t.size), P + rng.normal(0.0, 300.0, t.size), force)
+    return recording, muscle, float(np.sqrt(np.mean(ring**2)))
+
+
+def test_the_data_driven_correction_sees_a_load_cell_that_rings():
+    # outside the library: the correction must take it up with its resonance features (the bare
+    # acceleration is a spike at each reversal, the ring a decaying 6 Hz oscillation after it),
+    # predict held-out blocks better, and never give it a physical name
+    recording, muscle, ring_rms = _triangle_strokes_on_a_ringing_load_cell(mass_kg=5.0, seed=3)
+    assert 0.3 < ring_rms < 1.0  # the ring stands above the 0.3 N noise, not far above
+    d = diagnose([recording], muscle, next_experiment=False)
+    c = d.correction
+    assert any(term.startswith("resonance(") for term in c.terms), c.terms
+    assert c.heldout_rms_after_N < 0.7 * c.heldout_rms_before_N
+    assert not (d.verdict.confident and d.verdict.answer not in ("none", OUTSIDE)), d.verdict.answer
+    # the same strokes on a stiff load cell: nothing to correct, no alarm
+    quiet, muscle, _ = _triangle_strokes_on_a_ringing_load_cell(mass_kg=0.0, seed=3)
+    d = diagnose([quiet], muscle, next_experiment=False)
+    assert d.verdict.answer == "none", (d.verdict.answer, d.verdict.probability)
+
+
+@pytest.mark.parametrize("hz, drive_hz", [(4.0, 1.0), (4.0, 4.0), (16.0, 30.0)])
+def test_a_resonance_feature_answers_a_sine_as_its_transfer_function_says(hz, drive_hz):
+    # below, at and above the resonance: the steady amplitude and phase of the filtered strain
+    # against H(jw) = -w^2 wn^2 / (wn^2 - w^2 + 2 j zeta wn w) (in phase) and j w wn^3 / (...)
+    # (quadrature), evaluated here from the formula, not from the filter's coefficients
+    from efam_mujoco.diagnose.datadriven import RESONANCE_DAMPING, _resonance
+
+    fs = 1000.0
+    t = np.arange(0.0, 20.0, 1.0 / fs)
+    w, wn = 2 * math.pi * drive_hz, 2 * math.pi * hz
+    x = np.sin(w * t)
+    late = t > 10.0  # the ring of the start has died out (zeta wn t >= 25)
+    for quadrature, numerator in ((False, -(w**2) * wn**2), (True, 1j * w * wn**3)):
+        H = numerator / (wn**2 - w**2 + 2j * RESONANCE_DAMPING * wn * w)
+        expected = np.abs(H) * np.sin(w * t + np.angle(H))
+        got = _resonance(t, x, hz, quadrature)
+        scale = np.abs(H)
+        # Tustin's rule warps frequency by (w dt / 2)^2 / 3: under 0.5 % at 30 Hz and 1 kHz
+        assert np.max(np.abs(got[late] - expected[late])) < 0.01 * scale, (quadrature, drive_hz)

@@ -5,7 +5,9 @@ that no physical name is given to may still predict it. The features are generic
 the states and their histories (``features``): radial bumps over the strain and over the
 pressure (each also scaled by the other; for the reported correction also by the model's own
 sensitivity to that input: an error of a measured input as a function of its value), the rates and their saturated signs (direction), the
-strain's acceleration, the strain and the pressure less their first-order lags at time constants
+strain's acceleration and its resonances (the acceleration through lightly damped second-order
+filters at 2-64 Hz, in phase and in quadrature: a load cell or fixture that rings when the
+carriage accelerates), the strain and the pressure less their first-order lags at time constants
 from 0.05 to 30 s (memory; for the reported correction the pressure's also scaled by the model's sensitivity
 to it), the time, and the distance below the running maximum of the loading
 (first-loading memory). Every column is causal, as a simulation step could compute it.
@@ -26,13 +28,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
+from scipy.signal import bilinear, lfilter
 
-from .effects import Context, get, lag
+from .effects import Context, get, lag, segments
 from .select import Engine, Fit
 
 MAX_TERMS = 10
 MIN_STEP = 0.01
 RIDGE = 0.02  # of a feature's mean Gram diagonal: shrinks a well-seen feature by ~2 %
+#: natural frequencies (Hz) of the resonance features: a rig's load cell and fixture ring above the
+#: strokes' own frequencies. Half an octave apart with damping 0.2, a ring between two is taken up
+#: by the pair: a 6 Hz ring of damping 0.1 after each stroke reversal, R^2 0.73 of the 0.8 its
+#: noise leaves (an octave apart at damping 0.3: 0.56; a sixth of an octave at 0.1: 0.75)
+RESONANCE_HZ = tuple(2.0 * 2.0 ** (k / 2) for k in range(11))  # 2 to 64 Hz
+RESONANCE_DAMPING = 0.2
+RESONANCE_NYQUIST_SHARE = 1.0 / 6.0  # a filter is built only below this share of the sample rate
 
 
 @dataclass
@@ -116,12 +126,33 @@ def _bumps(u, count, given=None):
     return [np.exp(-(((u - c) / width) ** 2)) for c in centres], [f"{c:.3g}" for c in centres], given
 
 
+def _resonance(t: np.ndarray, x: np.ndarray, hz: float, quadrature: bool) -> np.ndarray:
+    """``x`` (one recording, from its first sample) through a second-order resonance at ``hz``
+    driven by its acceleration: wn^2 s^2 / (s^2 + 2 zeta wn s + wn^2) (``quadrature``: wn^3 s /
+    (...), the same ring a quarter period on), discretised by Tustin's rule at the median step.
+    Filtering the strain itself, not a twice-differentiated one, keeps the sensor's noise flat:
+    the filter tends to wn^2 x far above the resonance."""
+    fs = 1.0 / float(np.median(np.diff(t)))
+    wn = 2.0 * math.pi * hz
+    num = [0.0, wn**3, 0.0] if quadrature else [wn**2, 0.0, 0.0]
+    bz, az = bilinear(num, [1.0, 2.0 * RESONANCE_DAMPING * wn, wn * wn], fs)
+    return lfilter(bz, az, x - x[0])
+
+
 def _by_recording(ctx, fn):
     out = np.zeros(ctx.n)
-    for s0, s1 in zip(ctx.starts, list(ctx.starts[1:]) + [ctx.n]):
+    for s0, s1 in segments(ctx.starts, ctx.n):
         if s1 - s0 > 2:
             out[s0:s1] = fn(slice(s0, s1))
     return out
+
+
+def _resonances_built(ctx) -> list[float]:
+    """The resonance frequencies these data can carry: below ``RESONANCE_NYQUIST_SHARE`` of the
+    slowest recording's sample rate."""
+    steps = [float(np.median(np.diff(ctx.t[s0:s1]))) for s0, s1 in segments(ctx.starts, ctx.n) if s1 - s0 > 2]
+    fs = 1.0 / max(steps) if steps else 0.0
+    return [hz for hz in RESONANCE_HZ if hz <= RESONANCE_NYQUIST_SHARE * fs]
 
 
 def features(
@@ -179,6 +210,11 @@ def features(
         add(np.tanh(rate / (0.2 * typical)) * p, f"sign(d{name}/dt) * P")
         if name == "strain":
             add(_by_recording(ctx, lambda s, rate=rate: np.gradient(rate[s], t[s])), "d2strain/dt2")
+            # (on other data, a filter those data cannot carry is not built: the term is left out)
+            for hz in _resonances_built(ctx):
+                for quadrature in (False, True):
+                    ring = _by_recording(ctx, lambda s, hz=hz, q=quadrature: _resonance(t[s], x[s], hz, q))
+                    add(ring, f"resonance({hz:.3g} Hz) of {'dstrain/dt' if quadrature else 'd2strain/dt2'}")
         for tau in (0.05, 0.3, 3.0, 30.0):
             if name == "strain" and tau < 0.3:
                 continue
