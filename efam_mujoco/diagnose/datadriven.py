@@ -126,13 +126,13 @@ def _bumps(u, count, given=None):
     return [np.exp(-(((u - c) / width) ** 2)) for c in centres], [f"{c:.3g}" for c in centres], given
 
 
-def _resonance(t: np.ndarray, x: np.ndarray, hz: float, quadrature: bool) -> np.ndarray:
+def _resonance(x: np.ndarray, step_s: float, hz: float, quadrature: bool) -> np.ndarray:
     """``x`` (one recording, from its first sample) through a second-order resonance at ``hz``
     driven by its acceleration: wn^2 s^2 / (s^2 + 2 zeta wn s + wn^2) (``quadrature``: wn^3 s /
-    (...), the same ring a quarter period on), discretised by Tustin's rule at the median step.
-    Filtering the strain itself, not a twice-differentiated one, keeps the sensor's noise flat:
-    the filter tends to wn^2 x far above the resonance."""
-    fs = 1.0 / float(np.median(np.diff(t)))
+    (...), the same ring a quarter period on), discretised by Tustin's rule at the recording's
+    median time step ``step_s``. Filtering the strain itself, not a twice-differentiated one,
+    keeps the sensor's noise flat: the filter tends to wn^2 x far above the resonance."""
+    fs = 1.0 / step_s
     wn = 2.0 * math.pi * hz
     num = [0.0, wn**3, 0.0] if quadrature else [wn**2, 0.0, 0.0]
     bz, az = bilinear(num, [1.0, 2.0 * RESONANCE_DAMPING * wn, wn * wn], fs)
@@ -150,7 +150,7 @@ def _by_recording(ctx, fn):
 def _resonances_built(ctx) -> list[float]:
     """The resonance frequencies these data can carry: below ``RESONANCE_NYQUIST_SHARE`` of the
     slowest recording's sample rate."""
-    steps = [float(np.median(np.diff(ctx.t[s0:s1]))) for s0, s1 in segments(ctx.starts, ctx.n) if s1 - s0 > 2]
+    steps = [step for s0, s1, step in ctx.recording_steps() if s1 - s0 > 2]
     fs = 1.0 / max(steps) if steps else 0.0
     return [hz for hz in RESONANCE_HZ if hz <= RESONANCE_NYQUIST_SHARE * fs]
 
@@ -213,7 +213,10 @@ def features(
             # (on other data, a filter those data cannot carry is not built: the term is left out)
             for hz in _resonances_built(ctx):
                 for quadrature in (False, True):
-                    ring = _by_recording(ctx, lambda s, hz=hz, q=quadrature: _resonance(t[s], x[s], hz, q))
+                    ring = np.zeros(ctx.n)
+                    for s0, s1, step in ctx.recording_steps():
+                        if s1 - s0 > 2:
+                            ring[s0:s1] = _resonance(x[s0:s1], step, hz, quadrature)
                     add(ring, f"resonance({hz:.3g} Hz) of {'dstrain/dt' if quadrature else 'd2strain/dt2'}")
         for tau in (0.05, 0.3, 3.0, 30.0):
             if name == "strain" and tau < 0.3:

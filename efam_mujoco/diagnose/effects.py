@@ -299,16 +299,27 @@ class Context:
 
         return self.cached("eiv", make)
 
+    def recording_steps(self) -> list[tuple[int, int, float]]:
+        """Per recording: its sample range ``b, e`` and its median time step (s; 0 with fewer
+        than two samples), computed once for every feature that needs a recording's rate."""
+
+        def make():
+            return [
+                (b, e, float(np.median(np.diff(self.t[b:e]))) if e - b >= 2 else 0.0)
+                for b, e in segments(self.starts, self.n)
+            ]
+
+        return self.cached("recording_steps", make)
+
     def _eiv_recordings(self) -> list[tuple[int, int, float, int]]:
         """Per recording: its sample range ``b, e``, its pressure's white-noise level (Pa) and the
         samples in its errors-in-variables window (see ``input_noise``), computed once."""
 
         def make():
-            out = []
-            for b, e in segments(self.starts, self.n):
-                dt = float(np.median(np.diff(self.t[b:e]))) if e - b >= 2 else 0.0
-                out.append((b, e, high_frequency_noise(self.P[b:e]), 5 if 4 * dt <= EIV_SPAN_S else 3))
-            return out
+            return [
+                (b, e, high_frequency_noise(self.P[b:e]), 5 if 4 * dt <= EIV_SPAN_S else 3)
+                for b, e, dt in self.recording_steps()
+            ]
 
         return self.cached("eiv_recordings", make)
 
