@@ -5,6 +5,8 @@ What every subcommand gets from here, without code of its own:
 * exact flag matching: ``allow_abbrev=False`` on the parser and on every subparser (the
   ``subparsers`` object handed to ``register_cli`` adds it), so ``--pressures 75`` is an error,
   never a silent ``--pressures-kPa 75``;
+* a value flag given twice is an error naming both values (``--stress a --stress b`` kept the
+  last without a word);
 * every flag's default shown in its help;
 * ``efam --version``;
 * the output policy (:mod:`efam_mujoco.files`) checked before anything runs: an output path that
@@ -74,6 +76,31 @@ class _OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {visible(message)} (see {self.prog} --help)\n")
 
 
+def _typed(value) -> str:
+    """A parsed flag value as a user would have typed it (75, not 75.0)."""
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+class _StoreOnce(argparse._StoreAction):
+    """argparse's ``store`` action, refusing a flag given twice in one command line: argparse
+    keeps the last value, so ``--pressures-kPa 75 150 --pressures-kPa 300`` ran 300 kPa alone
+    and the user's first list was dropped without a word."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        """Store ``values``; a second occurrence of the flag in the same parse is a usage error."""
+        if self.option_strings:
+            # the namespace of this parse is the identity that matters (a parser can parse twice)
+            last = getattr(self, "_last", None)
+            if last is not None and last[0] is namespace:
+                shown = lambda v: " ".join(map(_typed, v)) if isinstance(v, list) else _typed(v)  # noqa: E731
+                parser.error(
+                    f"argument {option_string}: given twice ('{shown(last[1])}', then "
+                    f"'{shown(values)}'); give it once"
+                )
+            self._last = (namespace, values)
+        super().__call__(parser, namespace, values, option_string)
+
+
 class _ExactSubparsers:
     """Wraps argparse's subparsers action: every subparser gets ``allow_abbrev=False`` and the
     help formatter above, so no feature module has to remember them."""
@@ -92,6 +119,9 @@ class _ExactSubparsers:
         # every type=Path argument keeps '' as typed: pathlib reads it as '.', and _file_args'
         # empty-name check would see the current folder instead of the mistake
         parser.register("type", Path, path_or_empty)
+        # every value flag is given at most once (``_StoreOnce``); None is argparse's default action
+        parser.register("action", None, _StoreOnce)
+        parser.register("action", "store", _StoreOnce)
         return parser
 
     def __getattr__(self, name):
@@ -115,6 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
         allow_abbrev=False,
         formatter_class=_HelpFormatter,
     )
+    parser.register("action", None, _StoreOnce)
+    parser.register("action", "store", _StoreOnce)
     parser.add_argument("--version", action="version", version=f"efam_mujoco {_version()}")
     parser.add_argument(
         "--mujoco-log",
@@ -291,7 +323,10 @@ def _main(argv: list[str] | None) -> int:
     command = f"efam {args.command}"
     try:
         inputs, outputs = _file_args(args)
-        check_outputs(outputs, inputs, formatted=_formatted_flags(args))
+        documents = {
+            "--" + k.replace("_", "-"): v for k, v in (getattr(args, "document_outputs", None) or {}).items()
+        }
+        check_outputs(outputs, inputs, formatted=_formatted_flags(args), documents=documents)
         check_argument_bounds(args)
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line

@@ -33,6 +33,8 @@ import sysconfig
 import tempfile
 from pathlib import Path
 
+from .units import visible
+
 #: Marker file every report folder holds: only a folder with it (or an empty one) is replaced.
 REPORT_MARKER = ".efam_report"
 
@@ -97,6 +99,13 @@ def _mode_of(path: Path) -> int:
     umask = os.umask(0)
     os.umask(umask)
     return 0o666 & ~umask
+
+
+def _remove_temporaries(ready) -> None:
+    """Remove the temporaries of ``ready`` ((temporary, target) pairs) that were not renamed."""
+    for tmp, _ in ready:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
 
 
 @contextlib.contextmanager
@@ -295,8 +304,54 @@ def check_json_name(label: str, path: str | os.PathLike, content: str = "JSON") 
         )
 
 
+#: An efam document's declared format near the top of a JSON file (``"format": "efam_mujoco.muscle/1"``)
+_DOCUMENT_FORMAT = re.compile(rb'"format"\s*:\s*"(efam_mujoco\.[A-Za-z_]+/[0-9]+)"')
+#: What each efam document is, in words, for the message that refuses to replace one
+DOCUMENT_NAMES = {
+    "efam_mujoco.muscle": "a muscle file",
+    "efam_mujoco.arm_spec": "an arm spec",
+    "efam_mujoco.catalogue": "a sizing catalogue",
+}
+
+
+def check_replaced_kind(label: str, path: str | os.PathLike, content: str, writes: str | None = None) -> None:
+    """Refuse to replace an existing file that does not hold what this output writes: a JSON
+    output replaces only JSON (``{`` or ``[`` first), and not an efam document of another kind
+    (a muscle file, an arm spec, a catalogue: another command's input) unless it writes that
+    document (``writes``, e.g. ``efam_mujoco.muscle/1``); an XML output replaces only XML. A
+    recording saved as ``.txt``, a script or a muscle file given to ``--json`` by a slip of the
+    tab key was replaced without a word. A new or empty file, or one that cannot be read (the
+    write's own check names it), is not refused here."""
+    path = Path(path)
+    try:
+        if not path.is_file() or path.stat().st_size == 0:
+            return
+        with open(path, "rb") as handle:
+            head = handle.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n")
+    except OSError:
+        return
+    opens = {"JSON": (b"{", b"["), "XML": (b"<",)}.get(content, ())
+    if opens and head[:1] not in opens:
+        first = head.split(b"\n", 1)[0][:60].decode("utf-8", "replace").strip()
+        raise OutputError(
+            f"{label} {path}: the file exists and does not hold {content} (it begins '{visible(first)}'); "
+            f"this command would replace it with {content}: give the output a new name"
+        )
+    found = _DOCUMENT_FORMAT.search(head) if content == "JSON" else None
+    if found and found.group(1).decode() != writes:
+        kind = found.group(1).decode()
+        what = DOCUMENT_NAMES.get(kind.split("/")[0], "an efam document")
+        raise OutputError(
+            f"{label} {path}: the file is {what} ({kind}), which this output would replace; "
+            "give the output a new name"
+        )
+
+
 def check_outputs(
-    outputs: dict[str, object], inputs: dict[str, object], formatted: dict[str, str] = FORMATTED_OUTPUTS
+    outputs: dict[str, object],
+    inputs: dict[str, object],
+    formatted: dict[str, str] = FORMATTED_OUTPUTS,
+    documents: dict[str, str] | None = None,
 ) -> None:
     """Refuse outputs that would overwrite an input or each other, or land in the package.
 
@@ -304,7 +359,9 @@ def check_outputs(
     a path or a list of paths (None entries are ignored). For an output folder (``--report``)
     an input inside it is refused too, because the folder is replaced as a whole. The outputs
     labelled in ``formatted`` (flag -> "JSON", "XML") write that format: one named like a
-    recording is refused (:func:`check_json_name`).
+    recording is refused (:func:`check_json_name`), and an existing file they would replace must
+    hold that format (:func:`check_replaced_kind`; ``documents``: flag -> the efam document
+    format that output writes, e.g. calibrate's muscle file).
     """
     ins = [(label, Path(p)) for label, v in inputs.items() for p in _paths(v)]
     outs = [(label, Path(p)) for label, v in outputs.items() for p in _paths(v)]
@@ -368,6 +425,8 @@ def check_outputs(
                 raise OutputError(
                     f"{label} {out} is inside the installed package ({folder}); write somewhere else"
                 )
+        if label in formatted:  # last: the checks above say more about where the output goes
+            check_replaced_kind(label, out, formatted[label], (documents or {}).get(label))
 
 
 def _check_writable_place(label: str, out: Path) -> None:
@@ -530,8 +589,13 @@ def replace_folder(path: str | os.PathLike, label: str = "output folder", comman
     :func:`check_replaceable_folder`); a link to a folder is followed (the link is kept).
     """
     path = check_replaceable_folder(path, label, command)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=_temporary_prefix(path.name), suffix=".efam-tmp", dir=path.parent))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(
+            tempfile.mkdtemp(prefix=_temporary_prefix(path.name), suffix=".efam-tmp", dir=path.parent)
+        )
+    except OSError as err:  # the user's folder, not the temporary's name nobody asked for
+        raise OutputError(f"{label} {path}: cannot write here ({err.strerror or err})") from None
     try:
         yield staging
         _write_marker(staging, command)
@@ -675,14 +739,17 @@ def mujoco_warnings():
 # ---------------------------------------------------------------------------- output sets
 class OutputSet:
     """All outputs of one command, written together at the end: texts are kept in memory and
-    files (figures) rendered into a staging folder; :meth:`commit` then moves each into place
-    (each an atomic rename). A failure before the commit writes nothing; so a bad ``--figures``
-    path cannot fail after the muscle file was written."""
+    files (figures) rendered into a staging folder. :meth:`prepare` writes each into a unique
+    temporary beside its target, :meth:`commit` then renames them into place. A place that cannot
+    be written fails in :meth:`prepare`, before any output is replaced: a bad ``--figures`` path
+    cannot fail after the muscle file was written, nor an unwritable ``--json`` after the
+    ``--report`` folder was swapped in (``efam diagnose`` prepares before it swaps)."""
 
     def __init__(self):
         self.texts: dict[Path, str] = {}
         self._staging: Path | None = None
         self.staged: dict[Path, Path] = {}
+        self._ready: list[tuple[Path, Path]] | None = None  # (temporary, target), once prepared
 
     def text(self, path, text: str) -> Path:
         """Write ``text`` to ``path`` at :meth:`commit`."""
@@ -702,27 +769,54 @@ class OutputSet:
         self.staged[path] = staged
         return staged
 
-    def commit(self) -> list[Path]:
-        """Write every output (each atomically); the folders are made first, so a bad place fails
-        before any file is written."""
+    def prepare(self) -> None:
+        """Write every output into a temporary beside its target (folders made, the user's
+        permissions given); nothing the user has is replaced yet. Any failure removes what was
+        prepared and raises :class:`OutputError` naming the output."""
+        if self._ready is not None:
+            return
+        ready: list[tuple[Path, Path]] = []
         try:
-            for path in [*self.texts, *self.staged]:
+            contents = [(path, lambda text=text: text.encode("utf-8")) for path, text in self.texts.items()]
+            contents += [(path, staged.read_bytes) for path, staged in self.staged.items()]
+            for path, data in contents:
+                path = output_target(path)
                 path.parent.mkdir(parents=True, exist_ok=True)
                 if path.is_dir():
                     raise OutputError(f"{path}: is a folder, not a file")
+                fd, tmp = _temporary_beside(path)
+                ready.append((tmp, path))
+                try:
+                    with os.fdopen(fd, "wb") as handle:
+                        handle.write(data())
+                        handle.flush()
+                        os.fsync(handle.fileno())
+                    os.chmod(tmp, _mode_of(path))
+                except OSError as err:  # a full disk: the user's path, not the temporary's name
+                    raise OutputError(f"cannot write {path} ({err.strerror or err})") from None
+        except BaseException:
+            _remove_temporaries(ready)
+            raise
+        self._ready = ready
+
+    def commit(self) -> list[Path]:
+        """Write every output: :meth:`prepare` (if not done), then rename each temporary over its
+        target. Returns the targets written."""
+        try:
+            self.prepare()
             written = []
-            for path, text in self.texts.items():
-                written.append(write_text_atomic(path, text))
-            for path, staged in self.staged.items():
-                path.parent.mkdir(parents=True, exist_ok=True)
-                write_bytes_atomic(path, staged.read_bytes())
+            for tmp, path in self._ready:
+                os.replace(tmp, path)
                 written.append(path)
             return written
         finally:
             self.discard()
 
     def discard(self) -> None:
-        """Remove the staging folder (what was not committed is dropped)."""
+        """Remove the staging folder and any temporary not renamed (what was not committed is dropped)."""
+        if self._ready is not None:
+            _remove_temporaries(self._ready)
+            self._ready = None
         if self._staging is not None:
             shutil.rmtree(self._staging, ignore_errors=True)
             self._staging = None

@@ -41,6 +41,7 @@ says so (a decimal comma is not guessed at: it could be a thousands separator).
 
 from __future__ import annotations
 
+import argparse
 import csv
 import dataclasses
 import hashlib
@@ -57,7 +58,7 @@ import numpy as np
 
 from .files import write_text_atomic
 from .muscle import SIZE_RANGE_M
-from .units import LENGTH, PRESSURE, QUANTITIES, TIME, UnitError, factor, split_unit, unit_that_fits
+from .units import LENGTH, PRESSURE, QUANTITIES, TIME, UnitError, factor, split_unit, unit_that_fits, visible
 
 
 @dataclass
@@ -1025,6 +1026,20 @@ def _mark_impossible(rec: Recording, src: str, found: list[Finding]) -> list[Fin
     return out
 
 
+def _check_name(text: str) -> str:
+    """``--allow``'s argparse type: a check's name. A recording's name after ``--allow`` (which
+    takes every word that follows it) is told as such, not as an invalid choice."""
+    if text in CHECKS:
+        return text
+    known = ", ".join(CHECKS)
+    if Path(text).suffix or Path(text).exists():
+        raise argparse.ArgumentTypeError(
+            f"'{visible(text)}' is not a check but looks like a file: --allow takes every word after it, so "
+            "give the recordings before --allow (or end its checks with --) (checks: " + known + ")"
+        )
+    raise argparse.ArgumentTypeError(f"unknown check '{visible(text)}' (checks: {known})")
+
+
 def enforce_plausibility(findings: list[Finding], allow=(), warn=None, flag: str = "--allow") -> None:
     """Raise :class:`PlausibilityError` listing every finding whose check is not in ``allow``;
     tell ``warn`` (default: standard error) each allowed one as ``warning [check]: ...``."""
@@ -1106,7 +1121,7 @@ def add_recording_arguments(parser) -> None:
     )  # fmt: skip
     parser.add_argument(
         # extend: '--allow a --allow b' allows both (a plain list kept only the last, silently)
-        "--allow", nargs="+", action="extend", default=[], metavar="CHECK", choices=tuple(CHECKS),
+        "--allow", nargs="+", action="extend", default=[], metavar="CHECK", type=_check_name,
         help="continue past these failed plausibility checks with a named warning (the flag may be "
         "repeated): "
         + "; ".join(f"{k}: {v}" for k, v in CHECKS.items()) + " (default: none, every check is an error)",

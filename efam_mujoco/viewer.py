@@ -67,6 +67,12 @@ def check(path: str | Path) -> str:
         raise ValueError(f"{path}: {ignored[0]}")
     declared = muscles_in_file(path)
     check_muscle_laws(path, declared)
+    from .musclefile import check_tension_only
+
+    for name, muscle in declared.items():
+        # the plugin takes it (a slack extensile muscle tests the clamp), a user's model is told:
+        # tension-only, an extensile muscle carries no force until stretched past its free length
+        check_tension_only(muscle, f"{path}: the efam.muscle '{name}' sets tension_only")
     muscles = actuator_muscles(model, declared)
     if problems := control_range_problems(model, muscles):
         raise ValueError(f"{path}: {problems[0]}")

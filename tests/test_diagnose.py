@@ -148,6 +148,29 @@ def test_cli_writes_json_and_report(tmp_path, runs, capsys):
     assert "Located mismatch" in capsys.readouterr().out
 
 
+def test_cli_a_json_that_cannot_be_written_leaves_no_report_behind(tmp_path, runs, capsys, monkeypatch):
+    # the --json fails at its write (a full disk, a folder that refuses files): the report
+    # folder must not be swapped in first, and no temporary is left (a failed run writes nothing)
+    from efam_mujoco import files
+
+    recording, truth, _ = runs["pressure_lag"]
+    csv = write_csv(tmp_path / "rec.csv", recording)
+    real = files._temporary_beside
+
+    def refuse(path, suffix=""):
+        if path.name == "d.json":
+            raise files.OutputError(f"cannot write {path} (No space left on device)")
+        return real(path, suffix)
+
+    monkeypatch.setattr(files, "_temporary_beside", refuse)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(["diagnose", str(csv), "--muscle", truth.base_name, "--json", str(tmp_path / "d.json"),
+                 "--report", str(tmp_path / "report")])  # fmt: skip
+    assert code == 2
+    assert "cannot write" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
 def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("time_s,length_m,pressure_kPa,force_N\n0,0.17,100,1\n0,0.17,100,1\n")

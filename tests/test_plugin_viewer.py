@@ -88,6 +88,12 @@ def test_view_opens_the_viewer_with_the_compiled_model(tmp_path, monkeypatch):
             lambda xml: xml.replace('key="rest_length_m" value="0.17018"', 'key="rest_length_m" value="0.5"'),
             r"largest control, actuator 'm1' has length [0-9.]+ m .* outside its muscle's admissible",
         ),
+        # an extensile muscle written tension-only: the plugin takes it (it tests the clamp) and
+        # the muscle stays slack at every pressure, 0 N where it pushes 155 N at 300 kPa
+        (
+            lambda xml: xml.replace('key="tension_only" value="0"', 'key="tension_only" value="true"', 1),
+            r"efam\.muscle 'm1' sets tension_only, but the muscle is extensile",
+        ),
         # a zero gear makes the muscle's length 0 (a constant 5.7 MN from the lock spring)
         (lambda xml: xml.replace('tendon="t2">', 'tendon="t2" gear="0">'), r"actuator 'm2' has length 0 m"),
         # kPa typed into the control range of a Pa control: the muscle never leaves its dead band

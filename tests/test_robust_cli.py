@@ -4,6 +4,7 @@ checks. Each bad input ends in a clear error, no traceback, no data loss, no str
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
@@ -156,12 +157,57 @@ USAGE = [
     (["arm", "--sections", "100000", "--xml", "x.xml"], r"--sections: 100000 is outside"),
     (["arm", "--muscles-per-section", "5000", "--xml", "x.xml"], r"--muscles-per-section: 5000"),
     (["arm", "--pressure-lag-s", "-1", "--xml", "x.xml"], r"--pressure-lag-s: -1 s"),
+    # an empty name ran the default task without a word
+    (["suite", "--domain", "", "--task", "reach"], r"--domain: an empty name"),
+    (["suite", "--task", " "], r"--task: an empty name"),
 ]
 
 
 @pytest.mark.parametrize("argv, pattern", USAGE, ids=[" ".join(a)[:60] or "nothing" for a, _ in USAGE])
 def test_usage_errors_name_the_flag(folder, capsys, argv, pattern):
     run_bad(argv, folder, capsys, pattern)
+
+
+REPEATED = [
+    (
+        ["muscle", "FAM1", "--stress", "linear", "--stress", "sigmoid"],
+        r"--stress: given twice \('linear', then 'sigmoid'\)",
+    ),
+    (
+        ["muscle", "FAM1", "--pressures-kPa", "75", "150", "--pressures-kPa", "300"],
+        r"--pressures-kPa: given twice \('75 150', then '300'\)",
+    ),
+    (["arm", "--payload-kg", "1", "--payload-kg", "2", "--xml", "x.xml"], r"--payload-kg: given twice"),
+    (
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--muscle", "FAM2"],
+        r"--muscle: given twice \('FAM1', then 'FAM2'\)",
+    ),
+    (["diagnose", "rec.csv", "--muscle", "FAM1", "--muscle=FAM2"], r"--muscle: given twice"),
+    (["--mujoco-log", "a.log", "--mujoco-log", "b.log", "muscle", "FAM1"], r"--mujoco-log: given twice"),
+]
+
+
+@pytest.mark.parametrize("argv, pattern", REPEATED, ids=[" ".join(a)[:60] for a, _ in REPEATED])
+def test_a_value_flag_given_twice_is_refused(folder, capsys, argv, pattern):
+    # argparse keeps the last value: the first list of pressures was dropped without a word
+    run_bad(argv, folder, capsys, pattern)
+
+
+def test_every_value_flag_of_every_command_refuses_a_second_value():
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    parsers = {"efam": parser, **{f"efam {name}": sub for name, sub in commands.choices.items()}}
+    plain = [
+        f"{prog} {'/'.join(action.option_strings)}"
+        for prog, p in parsers.items()
+        for action in p._actions
+        if action.option_strings and type(action) is argparse._StoreAction
+    ]
+    assert not plain, f"value flags that keep the last of two values silently: {plain}"
+    # and parsing the same command line twice with one parser is not a repeat
+    for _ in range(2):
+        args = parser.parse_args(["muscle", "FAM1", "--stress", "linear"])
+        assert args.stress == "linear"
 
 
 @pytest.mark.parametrize("verb", ["calibrate", "diagnose"])
@@ -356,6 +402,66 @@ def test_failed_write_keeps_the_old_file_and_leaves_nothing(tmp_path):
         write_json_atomic(path, {"bad": object()})
     assert path.read_text() == '{"kept": true}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+def test_an_output_set_that_fails_on_its_second_file_leaves_the_first_as_it_was(tmp_path, monkeypatch):
+    from efam_mujoco import files
+
+    (tmp_path / "a.json").write_text('{"mine": 1}\n')
+    real = files._temporary_beside
+
+    def refuse(path, suffix=""):
+        if path.name == "b.json":
+            raise OutputError(f"cannot write {path} (Permission denied)")
+        return real(path, suffix)
+
+    monkeypatch.setattr(files, "_temporary_beside", refuse)
+    outputs = files.OutputSet()
+    outputs.json(tmp_path / "a.json", {"new": 1})
+    outputs.json(tmp_path / "b.json", {"new": 2})
+    with pytest.raises(OutputError, match=r"cannot write .*b\.json"):
+        outputs.commit()
+    assert (tmp_path / "a.json").read_text() == '{"mine": 1}\n'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]
+
+
+REPLACED = [
+    # a recording saved as .txt, a muscle file, a note: an output of another kind does not replace them
+    (["muscle", "FAM1", "--json", "table.txt"], "table.txt", "time_s,length_m,pressure_kPa,force_N\n0,0.17,100,5\n",
+     r"--json table\.txt: the file exists and does not hold JSON \(it begins 'time_s,length_m"),
+    (["muscle", "FAM1", "--json", "notes.txt"], None, None, r"--json notes\.txt: the file exists and does not hold JSON"),
+    (["muscle", "FAM1", "--json", "mine.json"], "mine.json", None, r"--json mine\.json: the file is a muscle file \(efam_mujoco\.muscle/1\)"),
+    (["arm", "--xml", "notes.xml"], "notes.xml", "a note\n", r"--xml notes\.xml: the file exists and does not hold XML"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("argv, name, text, pattern", REPLACED, ids=[" ".join(a) for a, *_ in REPLACED])
+def test_an_output_does_not_replace_a_file_of_another_kind(folder, capsys, argv, name, text, pattern):
+    if name is not None:
+        (folder / name).write_text(text if text is not None else load_muscle_text())
+    run_bad(argv, folder, capsys, pattern)
+
+
+def test_an_output_replaces_its_own_kind(folder, capsys):
+    # a second run over its own table, and calibrate's muscle file over a muscle file
+    for _ in range(2):
+        code, _, err = run_cli(
+            ["muscle", "FAM1", "--pressures-kPa", "100", "--json", "t.json"], folder, capsys
+        )
+        assert code == 0, err
+    assert json.loads((folder / "t.json").read_text())
+    from efam_mujoco.files import check_replaced_kind
+    from efam_mujoco.musclefile import FORMAT
+
+    check_replaced_kind("--out", folder / "muscle.json", "JSON", FORMAT)  # no error
+    with pytest.raises(OutputError, match="is a muscle file"):
+        check_replaced_kind("--json", folder / "muscle.json", "JSON")
+
+
+def test_a_recording_after_allow_is_told_as_a_file(folder, capsys):
+    # --allow takes every word after it: the recording was reported as an invalid check
+    run_bad(["calibrate", "--muscle", "FAM1", "--allow", "force-dead", "rec.csv"], folder, capsys,
+            r"--allow: 'rec\.csv' is not a check but looks like a file: .*give the recordings before --allow")  # fmt: skip
 
 
 def test_strict_json_converts_numpy_and_refuses_non_finite():
@@ -831,6 +937,15 @@ def test_a_control_character_in_a_file_name_reaches_the_terminal_escaped(folder,
     name = "\x1b[31mred.csv"
     err = run_bad([*verb, name], folder, capsys, r"\\x1b\[31mred\.csv")
     assert "\x1b" not in err
+
+
+def test_a_written_file_with_an_escape_sequence_in_its_name_is_reported_escaped(folder, capsys):
+    # the success line too: the file is written under its own name, the terminal sees the escape
+    name = "arm\x1b[31mred.xml"
+    code, out, err = run_cli(["arm", "--xml", name], folder, capsys)
+    assert code == 0, err
+    assert (folder / name).is_file()
+    assert "\x1b" not in out and "arm\\x1b[31mred.xml" in out, out
 
 
 def test_an_unrecognised_argument_with_an_escape_sequence_is_shown_escaped(folder, capsys):

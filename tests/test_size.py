@@ -451,3 +451,15 @@ def test_arm_overlapping_muscles_name_the_flag(capsys):
     assert main(["arm", "--radius-mm", "1"]) == 2
     err = capsys.readouterr().err
     assert "overlap at rest" in err and "raise --radius-mm" in err and "radius_m " not in err
+
+
+def test_a_force_within_the_rounding_of_zero_gives_the_free_stroke():
+    # --force 5e-324 leaked scipy's "f(a) and f(b) must have different signs" (no flag named)
+    from efam_mujoco.musclefile import load_muscle
+    from efam_mujoco.size.constraints import stroke_at_force
+
+    muscle = load_muscle("FAM1")
+    free = float(muscle.free_length(400e3))
+    for tiny in (5e-324, 1e-300):
+        assert stroke_at_force(muscle, 400e3, tiny, free) == pytest.approx(free / muscle.rest_length_m - 1.0)
+    assert main(["size", "--stroke", "0.5", "--force", "5e-324", "--pressure", "400"]) == 0

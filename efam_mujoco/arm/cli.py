@@ -13,10 +13,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..files import write_json_atomic, write_text_atomic
+from ..files import OutputSet
 from ..musclefile import load_muscle
 from ..progress import progress
-from ..units import as_floats
+from ..units import as_floats, visible
 from .builder import (
     MODELS_DIR,
     arm_xml,
@@ -308,7 +308,7 @@ def _run(args) -> int:
         if args.models_dir.exists() and not args.models_dir.is_dir():
             raise ValueError(f"--models-dir {args.models_dir}: is a file, not a folder")
         for path in write_models(args.models_dir):
-            print(path)
+            print(visible(str(path)))
         return 0
     spec = arm_from_args(args)
     dof = degrees_of_freedom(spec)
@@ -326,9 +326,9 @@ def _run(args) -> int:
         pressures = np.asarray(args.pressures_kPa) * 1e3
         if pressures.size != count or not np.all(np.isfinite(pressures)) or np.any(pressures < 0):
             raise ValueError(f"--pressures-kPa: need {count} finite pressures >= 0, got {args.pressures_kPa}")
+    outputs = OutputSet()  # written together at the end: a failed equilibrium leaves the --xml as it was
     if args.xml:
-        write_text_atomic(args.xml, arm_xml(spec))
-        print(f"wrote {args.xml} (its time step: custom numeric {NUMERIC_NAME!r})")
+        outputs.text(args.xml, arm_xml(spec))
     if args.pressures_kPa:
         sizes = np.cumsum([len(s.muscles) for s in spec.sections])[:-1]
         result = equilibrium(spec, np.split(pressures, sizes))
@@ -355,7 +355,14 @@ def _run(args) -> int:
         if not result["settled"]:
             print("warning: the MuJoCo arm's static equilibrium did not converge", file=sys.stderr)
         if args.json:
-            write_json_atomic(args.json, result)
+            outputs.json(args.json, result)
+    for path in outputs.commit():
+        shown = visible(str(path))
+        print(
+            f"wrote {shown} (its time step: custom numeric {NUMERIC_NAME!r})"
+            if args.xml and path == Path(args.xml)
+            else f"wrote {shown}"
+        )
     if not (args.xml or args.pressures_kPa):
         print(
             "efam arm: error: nothing to do: pass --xml FILE, --pressures-kPa ..., or --write-models",

@@ -10,12 +10,14 @@ import numpy as np
 
 from ..cli import bounded_int
 from ..files import (
+    OutputSet,
     check_replaceable_folder,
     replace_folder,
     save_figure,
     write_json_atomic,
     write_text_atomic,
 )
+from ..units import visible
 from .diagnosis import ArmDiagnosis, diagnose_arm
 from .recording import read_csv
 from .replay import Replayer
@@ -199,15 +201,28 @@ def run(args) -> int:
     d = diagnose_arm(spec, rec, threads=args.threads)
     report = text(d)
     print(report)
+    outputs = OutputSet()
     if args.json:
-        write_json(args.json, d)
-    if args.report:  # built beside, swapped in whole (files.replace_folder), as efam diagnose's
-        with replace_folder(args.report, "--report", "diagnose-arm") as staging:
-            write_text_atomic(staging / "report.txt", report + "\n")
-            write_json(staging / "diagnosis.json", d)
-            write_model(staging / "arm_identified.xml", spec, d)
-            figures(d, staging)
-        print(f"wrote {args.report}/report.txt, diagnosis.json, arm_identified.xml, armdiag_tip.png")
+        outputs.json(args.json, d.to_json())
+    try:
+        # the --json is written beside its place before the report is swapped in, and renamed
+        # after: a failed run leaves neither (as efam diagnose)
+        outputs.prepare()
+        if args.report:  # built beside, swapped in whole (files.replace_folder), as efam diagnose's
+            with replace_folder(args.report, "--report", "diagnose-arm") as staging:
+                write_text_atomic(staging / "report.txt", report + "\n")
+                write_json(staging / "diagnosis.json", d)
+                write_model(staging / "arm_identified.xml", spec, d)
+                figures(d, staging)
+        outputs.commit()
+    finally:
+        outputs.discard()
+    if args.report:
+        print(
+            f"wrote {visible(str(args.report))}/report.txt, diagnosis.json, arm_identified.xml, armdiag_tip.png"
+        )
+    if args.json:
+        print(f"wrote {visible(str(args.json))}")
     return 0
 
 

@@ -8,9 +8,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..files import OutputError, OutputSet, check_outputs
+from ..musclefile import FORMAT as MUSCLE_FORMAT
 from ..musclefile import check_tension_only, muscle_from_document, read_document
 from ..recordings import add_recording_arguments, read_for_fit
 from ..stress import LAW_NAMES
+from ..units import visible
 from . import report
 from .baseline import paper_baseline
 from .core import calibrate
@@ -72,7 +74,11 @@ def register_cli(subparsers) -> None:
                    help="also run the paper's Nelder-Mead procedure and compare (Eq. 14 and time)")  # fmt: skip
     add_recording_arguments(p)
     p.set_defaults(
-        run=run, file_inputs=("files", "muscle"), file_outputs=("out", "json"), json_outputs=("out",)
+        run=run,
+        file_inputs=("files", "muscle"),
+        file_outputs=("out", "json"),
+        json_outputs=("out",),
+        document_outputs={"out": MUSCLE_FORMAT},
     )
 
 
@@ -150,7 +156,7 @@ def run(args) -> int:
     finally:
         outputs.discard()
     for path in written:
-        print(f"wrote {path}")
+        print(f"wrote {visible(str(path))}")
     return 0
 
 

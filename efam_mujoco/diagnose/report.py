@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..units import visible
 from . import Diagnosis, _for_recording, diagnose
 from .effects import get
 
@@ -316,17 +317,25 @@ def run(args) -> int:
     outputs = OutputSet()
     if args.json:
         outputs.json(args.json, d.to_json())
-    if args.report:
-        directory = Path(args.report)
-        with replace_folder(directory, "--report", "diagnose") as staging:
-            (staging / "report.txt").write_text(report)
-            (staging / "rig_with_effects.xml").write_text(rig_with_effects(d))
-            if args.json is None:
-                (staging / "diagnosis.json").write_text(strict_json(d.to_json()))
-            names = [path.name for path in figures(d, staging)]
-        print(f"model: {directory / 'rig_with_effects.xml'} (the re-fitted muscle, effects switched on)")
-        for name in names:
-            print(f"figure: {directory / name}")
-    for path in outputs.commit():
-        print(f"wrote {path}")
+    try:
+        # written beside its place first: a --json that cannot be written fails before the
+        # report folder is swapped in, so a failed run leaves neither
+        outputs.prepare()
+        if args.report:
+            directory = Path(args.report)
+            with replace_folder(directory, "--report", "diagnose") as staging:
+                (staging / "report.txt").write_text(report)
+                (staging / "rig_with_effects.xml").write_text(rig_with_effects(d))
+                if args.json is None:
+                    (staging / "diagnosis.json").write_text(strict_json(d.to_json()))
+                names = [path.name for path in figures(d, staging)]
+            shown = visible(str(directory))
+            print(f"model: {shown}/rig_with_effects.xml (the re-fitted muscle, effects switched on)")
+            for name in names:
+                print(f"figure: {shown}/{name}")
+        written = outputs.commit()
+    finally:
+        outputs.discard()
+    for path in written:
+        print(f"wrote {visible(str(path))}")
     return 0

@@ -624,7 +624,7 @@ static int read_flag(const mjModel* m, int instance, const char* key) {
   if (strcmp(text, "1") == 0 || strcmp(text, "true") == 0) {
     return 1;
   }
-  CONFIG_ERROR(m, instance, "config key '%s' must be \"0\" or \"1\", got '%s'", key, text);
+  CONFIG_ERROR(m, instance, "config key '%s' must be \"0\" or \"1\" (or \"false\" or \"true\"), got '%s'", key, text);
   return 0;
 }
 

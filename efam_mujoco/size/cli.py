@@ -7,9 +7,10 @@ import math
 
 from ..arm.spec import ARM_BOUNDS, MAX_MUSCLES_PER_SECTION
 from ..cli import plain_float, plain_int
-from ..files import write_json_atomic
+from ..files import OutputSet
 from ..musclefile import MuscleFileError
 from ..stress import LAW_NAMES, StressLawError
+from ..units import visible
 from . import report
 from .catalogue import load_catalogue
 from .design import Material
@@ -140,10 +141,11 @@ def run(args) -> int:
     )
     result = size(request, material, catalogue, verify=args.top)
     print(report.summary(result, top=args.top))
+    outputs = OutputSet()  # written together: a figure that fails leaves the --json as it was
     if args.json:
-        write_json_atomic(args.json, result.to_dict(top=args.top))
-        print(f"wrote {args.json}")
+        outputs.json(args.json, result.to_dict(top=args.top))
     if args.figure:
-        report.envelope_figure(result, args.figure, top=args.top)
-        print(f"wrote {args.figure}")
+        report.envelope_figure(result, outputs.staging_path(args.figure), top=args.top)
+    for path in outputs.commit():
+        print(f"wrote {visible(str(path))}")
     return 0 if result.feasible else 1

@@ -94,6 +94,10 @@ def stroke_at_force(muscle: Muscle, pressure_Pa: float, force_N: float, free_len
         return free_length / rest - 1.0
     if muscle.push(pressure_Pa, rest) <= force_N:
         return 0.0
+    if muscle.push(pressure_Pa, free_length) >= force_N:
+        # a force within the rounding of the free length's zero (--force 5e-324): the free
+        # stroke, where the root search found no sign change and said so in scipy's words
+        return free_length / rest - 1.0
     length = brentq(lambda L: muscle.push(pressure_Pa, L) - force_N, rest, free_length, xtol=1e-12)
     return length / rest - 1.0
 

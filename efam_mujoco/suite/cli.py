@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..cli import bounded_int
-from ..files import check_figure_path, save_figure, write_json_atomic
+from ..files import OutputSet, check_figure_path, save_figure
+from ..units import visible
 
 #: tasks the model-based controller acts on (those with a tip target)
 CONTROLLED_TASKS = ("reach", "reach_payload", "track")
@@ -132,8 +133,13 @@ def _run(args) -> int:
             tag = "benchmarking" if (domain, task) in BENCHMARKING else "extra"
             print(f"{domain}-{task}  ({tag})")
         return 0
-    args.domain = args.domain or "bundle"
-    args.task = args.task or "reach"
+    for flag, value in (("--domain", args.domain), ("--task", args.task)):
+        if value is not None and not value.strip():  # '' read as "the default" ran another task
+            raise ValueError(
+                f"{flag}: an empty name; give one (efam suite --list shows them) or drop the flag"
+            )
+    args.domain = "bundle" if args.domain is None else args.domain
+    args.task = "reach" if args.task is None else args.task
     if (args.domain, args.task) not in ALL_TASKS:
         raise ValueError(f"--domain/--task: no task {args.domain}-{args.task}; see efam suite --list")
     if args.seed + args.episodes - 1 > MAX_SEED:  # the last episode's seed, before any episode runs
@@ -159,10 +165,13 @@ def _run(args) -> int:
             f"mean return {summary['mean_return']:6.1f}, final error median {summary['median_final_error'] * scale:.2f} {unit}, "
             f"worst {summary['worst_final_error'] * scale:.2f} {unit}"
         )
+    outputs = OutputSet()  # written together: a strip that fails leaves the --json as it was
     if args.json:
-        write_json_atomic(args.json, report)
+        outputs.json(args.json, report)
     if args.strip:  # checked above, before the episodes
-        print(f"wrote {write_strip(args.domain, args.task, args.seed, args.strip)}")
+        write_strip(args.domain, args.task, args.seed, outputs.staging_path(args.strip))
+    for path in outputs.commit():
+        print(f"wrote {visible(str(path))}")
     return 0
 
 
