@@ -297,7 +297,10 @@ def test_arm_says_when_mujoco_and_the_continuum_disagree(tmp_path, capsys, monke
                               "--pressures-kPa", "200", "200", "200", "--json", tmp_path / "eq.json"],
                              tmp_path, capsys)  # fmt: skip
     assert code == 0 and "continuum reference [" in out, out
-    assert "warning: the MuJoCo arm and the continuum reference disagree: their tips are" in err, err
+    assert "efam arm: warning: the MuJoCo arm and the continuum reference disagree: their tips are" in err, (
+        err
+    )
+    assert err.count("\n") == 1, err  # one line, prefixed like every command's warnings
     assert "% of the arm's rest length apart (they agree within 0.01 %" in err and "likely:" in err
     doc = json.loads((tmp_path / "eq.json").read_text())
     assert doc["agreement"]["agree"] is False and doc["agreement"]["reasons"], doc

@@ -336,7 +336,7 @@ def _run(args) -> int:
         mujoco_mm = np.round(1e3 * np.array(result["tip_mujoco_m"]), 2) + 0.0
         if result["tip_continuum_m"] is None:
             print(f"tip at rest, base frame (mm): MuJoCo {mujoco_mm}, continuum reference: did not converge")
-            print(f"warning: {result['continuum_error']}", file=sys.stderr)
+            _warn(str(result["continuum_error"]))
         else:
             print(
                 f"tip at rest, base frame (mm): MuJoCo {mujoco_mm}, "
@@ -344,16 +344,15 @@ def _run(args) -> int:
                 f"difference {result['difference_pct_of_rest_length']:.2f} % of the arm's rest length"
             )
             if not result["agreement"]["agree"]:
-                print(
-                    f"warning: the MuJoCo arm and the continuum reference disagree: their tips are "
+                _warn(
+                    f"the MuJoCo arm and the continuum reference disagree: their tips are "
                     f"{result['difference_pct_of_rest_length']:.1f} % of the arm's rest length apart (they agree "
                     f"within {AGREEMENT_PCT:g} % in the models' validity range); likely: "
-                    + "; ".join(result["agreement"]["reasons"]),
-                    file=sys.stderr,
+                    + "; ".join(result["agreement"]["reasons"])
                 )
         print(result["timestep"]["description"])
         if not result["settled"]:
-            print("warning: the MuJoCo arm's static equilibrium did not converge", file=sys.stderr)
+            _warn("the MuJoCo arm's static equilibrium did not converge")
         if args.json:
             outputs.json(args.json, result)
     for path in outputs.commit():
@@ -370,6 +369,11 @@ def _run(args) -> int:
         )
         return 2
     return 0
+
+
+def _warn(message: str) -> None:
+    """One warning line on standard error, as every command's: ``efam arm: warning: ...``."""
+    print(f"efam arm: warning: {visible(' '.join(message.split()))}", file=sys.stderr)
 
 
 def register_cli(subparsers) -> None:

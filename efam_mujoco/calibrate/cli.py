@@ -134,7 +134,10 @@ def run(args) -> int:
     print("\nTable 4 form: coefficients and errors")
     print(report.table4(cal))
     if args.baseline and cal.problem.points is None:
-        print("warning: --baseline skipped: the paper's procedure needs isobaric strokes", file=sys.stderr)
+        print(
+            "efam calibrate: warning: --baseline skipped: the paper's procedure needs isobaric strokes",
+            file=sys.stderr,
+        )
     if args.baseline and cal.problem.points is not None:
         base = paper_baseline(cal.fits[cal.best_law].muscle, cal.problem, list(cal.fits))
         print("\nthe paper's procedure (Nelder-Mead on Eq. 14) vs this calibration")
