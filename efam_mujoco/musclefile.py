@@ -358,6 +358,10 @@ def geometry_from_dict(g: dict, where: str) -> Geometry:
     return geometry
 
 
+#: Unicode's bidirectional embeddings, overrides and isolates (U+202A-U+202E, U+2066-U+2069)
+BIDI_CONTROLS = frozenset(map(chr, (*range(0x202A, 0x202F), *range(0x2066, 0x206A))))
+
+
 def check_text(value: str, key: str, label: str, one_line: bool = True) -> None:
     """Refuse a string holding a control character or half a surrogate pair (JSON's \\u0000,
     \\ud800): it is not text, and breaks the XML models, reports and file names a name goes into.
@@ -369,6 +373,14 @@ def check_text(value: str, key: str, label: str, one_line: bool = True) -> None:
         raise MuscleFileError(
             f"{label}: key '{key}' holds the character U+{ord(bad):04X}, which is not text (a control "
             "character or half a surrogate pair)"
+        )
+    # a bidirectional embedding, override or isolate reorders what a terminal or a report shows
+    # after it (a name printed as another): not text a muscle's name or description needs
+    bidi = next((ch for ch in value if ch in BIDI_CONTROLS), None)
+    if bidi is not None:
+        raise MuscleFileError(
+            f"{label}: key '{key}' holds the character U+{ord(bidi):04X}, a bidirectional control that "
+            "reorders the text shown after it; remove it"
         )
 
 

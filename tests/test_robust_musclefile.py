@@ -224,6 +224,17 @@ CASES = [
     ("NUL in the name", edited(name="FAM\u0000"), [r"key 'name' holds the character U\+0000"]),
     # a name heads tables and names files: one line (a description may have several)
     ("a line break in the name", edited(name="FAM\n1"), [r"key 'name' holds the character U\+000A"]),
+    # a right-to-left override shows the name (and what follows it on the line) reordered
+    (
+        "a bidi override in the name",
+        edited(name="FAM\u202e1"),
+        [r"key 'name' holds the character U\+202E, a bidirectional"],
+    ),
+    (
+        "a bidi isolate in the description",
+        edited(description="tube \u2066x"),
+        [r"key 'description' holds the character U\+2066"],
+    ),
     (
         "half a surrogate pair in the name",
         json.dumps(fam1()).replace('"FAM1"', '"FAM\\ud800"', 1).encode(),
