@@ -330,6 +330,8 @@ def check_replaced_kind(label: str, path: str | os.PathLike, content: str, write
             head = handle.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n")
     except OSError:
         return
+    if not head:  # blank: nothing to lose
+        return
     opens = {"JSON": (b"{", b"["), "XML": (b"<",)}.get(content, ())
     if opens and head[:1] not in opens:
         first = head.split(b"\n", 1)[0][:60].decode("utf-8", "replace").strip()

@@ -450,6 +450,11 @@ def test_an_output_replaces_its_own_kind(folder, capsys):
         )
         assert code == 0, err
     assert json.loads((folder / "t.json").read_text())
+    (folder / "blank.json").write_text("\n  \n")  # blank: nothing to lose
+    code, _, err = run_cli(
+        ["muscle", "FAM1", "--pressures-kPa", "100", "--json", "blank.json"], folder, capsys
+    )
+    assert code == 0 and json.loads((folder / "blank.json").read_text()), err
     from efam_mujoco.files import check_replaced_kind
     from efam_mujoco.musclefile import FORMAT
 
