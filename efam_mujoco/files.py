@@ -296,11 +296,26 @@ def check_json_name(label: str, path: str | os.PathLike, content: str = "JSON") 
     later command read the JSON as one. A name without a suffix, or with any other, is the
     user's choice."""
     suffix = Path(path).suffix
+    own = f".{content.lower()}"
     if suffix.lower() in DATA_SUFFIXES:
-        own = f".{content.lower()}"
         raise OutputError(
             f"{label} {path}: writes {content}, but '{suffix}' is a recording's suffix (a later command would "
             f"read the file as a recording); give it a {own} name (e.g. {Path(path).with_suffix(own)})"
+        )
+
+
+def check_kind_of_name(label: str, path: str | os.PathLike, content: str = "JSON") -> None:
+    """Refuse a JSON (or XML: ``content``) output named like another kind of file: a figure
+    (``--json table.png``) or the other text format (``arm --xml arm.json``). A viewer, or a
+    command that reads a file by its name (a muscle file, a model), would open it as what it is
+    not."""
+    suffix = Path(path).suffix
+    own = f".{content.lower()}"
+    other = {"JSON": ".xml", "XML": ".json"}.get(content)
+    if suffix.lower().lstrip(".") in figure_formats() or suffix.lower() == other:
+        raise OutputError(
+            f"{label} {path}: writes {content}, but '{suffix}' names another kind of file; give it a {own} "
+            f"name (e.g. {Path(path).with_suffix(own)})"
         )
 
 
@@ -427,7 +442,11 @@ def check_outputs(
                 raise OutputError(
                     f"{label} {out} is inside the installed package ({folder}); write somewhere else"
                 )
-        if label in formatted:  # last: the checks above say more about where the output goes
+    # last, for every output: the checks above say more about where an output goes (an input, the
+    # package, another output) than its name's kind or the kind of file it would replace
+    for label, out in outs:
+        if label in formatted:
+            check_kind_of_name(label, out, formatted[label])
             check_replaced_kind(label, out, formatted[label], (documents or {}).get(label))
 
 

@@ -244,8 +244,9 @@ OVERWRITES = [
         r"--out and --json are the same file",
     ),
     (
+        # the muscle file named as one of the figures: refused by its name first (JSON as .png)
         ["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "fig", "--out", "fig_blocked.png"],
-        r"same file",
+        r"--out fig_blocked\.png: writes JSON, but '\.png' names another kind of file",
     ),
     (["calibrate", "rec.csv", "--muscle", "FAM1", "--figures", "rec.csv"], r""),
     (
@@ -423,6 +424,21 @@ def test_an_output_set_that_fails_on_its_second_file_leaves_the_first_as_it_was(
         outputs.commit()
     assert (tmp_path / "a.json").read_text() == '{"mine": 1}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]
+
+
+@pytest.mark.parametrize(
+    "argv, pattern",
+    [
+        (
+            ["muscle", "FAM1", "--json", "table.png"],
+            r"--json table\.png: writes JSON, but '\.png' names another kind",
+        ),
+        (["arm", "--xml", "arm.json"], r"--xml arm\.json: writes XML, but '\.json' names another kind"),
+        (["muscle", "FAM1", "--json", "table.xml"], r"--json table\.xml: writes JSON, but '\.xml'"),
+    ],
+)
+def test_a_text_output_named_like_another_kind_of_file_is_refused(folder, capsys, argv, pattern):
+    run_bad(argv, folder, capsys, pattern)
 
 
 REPLACED = [
