@@ -204,14 +204,19 @@ def _file_args(args) -> tuple[dict, dict]:
     return inputs, outputs
 
 
+def _document_flags(args) -> dict[str, str]:
+    """The output flags of this command that write an efam document, flag -> its format
+    (``set_defaults(document_outputs={"out": "efam_mujoco.muscle/1"})``: calibrate's muscle file)."""
+    declared = getattr(args, "document_outputs", None) or {}
+    return {"--" + name.replace("_", "-"): kind for name, kind in declared.items()}
+
+
 def _formatted_flags(args) -> dict[str, str]:
     """The output flags of this command whose content has a format, flag -> format: every
-    ``--json`` and ``--xml``, and the JSON outputs a command declares
-    (``set_defaults(json_outputs=("out",))``: calibrate's muscle file)."""
+    ``--json`` and ``--xml``, and the efam documents a command writes (JSON)."""
     from .files import FORMATTED_OUTPUTS
 
-    declared = getattr(args, "json_outputs", None) or ()
-    return {**FORMATTED_OUTPUTS, **{"--" + name.replace("_", "-"): "JSON" for name in declared}}
+    return {**FORMATTED_OUTPUTS, **{flag: "JSON" for flag in _document_flags(args)}}
 
 
 def check_argument_bounds(args) -> None:
@@ -323,10 +328,7 @@ def _main(argv: list[str] | None) -> int:
     command = f"efam {args.command}"
     try:
         inputs, outputs = _file_args(args)
-        documents = {
-            "--" + k.replace("_", "-"): v for k, v in (getattr(args, "document_outputs", None) or {}).items()
-        }
-        check_outputs(outputs, inputs, formatted=_formatted_flags(args), documents=documents)
+        check_outputs(outputs, inputs, formatted=_formatted_flags(args), documents=_document_flags(args))
         check_argument_bounds(args)
         route_mujoco_log(args.mujoco_log)
         with warnings.catch_warnings():  # Python's filters; each shown as one line

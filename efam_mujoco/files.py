@@ -121,17 +121,34 @@ def _renamed_over(tmp: Path, path: Path):
             tmp.unlink()
 
 
+def _write_beside(path: Path, data: bytes) -> Path:
+    """``data`` in a unique temporary beside ``path``, on disk (fsync) with the permissions a new
+    file gets; returns the temporary, which the caller renames. A failed write removes it."""
+    fd, tmp = _temporary_beside(path)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.chmod(tmp, _mode_of(path))
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+    return tmp
+
+
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to a unique temporary beside ``path`` and rename it over ``path``."""
     path = output_target(path)
     if path.is_dir():
         raise OutputError(f"{path}: is a folder, not a file")
-    fd, tmp = _temporary_beside(path)
-    with _renamed_over(tmp, path):
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
+    tmp = _write_beside(path, data)
+    try:
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
     return path
 
 
@@ -282,8 +299,8 @@ FOLDER_ONLY_OUTPUTS = ("--report", "--models-dir")
 #: data files an output never replaces, even when they are not the command's inputs
 DATA_SUFFIXES = (".csv", ".tsv")
 #: the output flags whose content has a format whatever their name, flag -> format (every
-#: command's ``--json``, the arm's MJCF ``--xml``; a command adds its other JSON outputs, such as
-#: calibrate's ``--out`` muscle file, through ``set_defaults(json_outputs=...)``)
+#: command's ``--json``, the arm's MJCF ``--xml``; a command adds the efam documents it writes,
+#: such as calibrate's ``--out`` muscle file, through ``set_defaults(document_outputs=...)``)
 FORMATTED_OUTPUTS = {"--json": "JSON", "--xml": "XML"}
 #: the preset muscles' names as a user types them (``musclefile.PRESETS``, lower case): an output
 #: of that bare name is refused, as it would shadow the preset in the folder it is written to
@@ -805,14 +822,8 @@ class OutputSet:
                 path.parent.mkdir(parents=True, exist_ok=True)
                 if path.is_dir():
                     raise OutputError(f"{path}: is a folder, not a file")
-                fd, tmp = _temporary_beside(path)
-                ready.append((tmp, path))
                 try:
-                    with os.fdopen(fd, "wb") as handle:
-                        handle.write(data())
-                        handle.flush()
-                        os.fsync(handle.fileno())
-                    os.chmod(tmp, _mode_of(path))
+                    ready.append((_write_beside(path, data()), path))
                 except OSError as err:  # a full disk: the user's path, not the temporary's name
                     raise OutputError(f"cannot write {path} ({err.strerror or err})") from None
         except BaseException:

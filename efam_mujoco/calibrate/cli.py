@@ -77,8 +77,7 @@ def register_cli(subparsers) -> None:
         run=run,
         file_inputs=("files", "muscle"),
         file_outputs=("out", "json"),
-        json_outputs=("out",),
-        document_outputs={"out": MUSCLE_FORMAT},
+        document_outputs={"out": MUSCLE_FORMAT},  # a JSON document: checked as one (cli._formatted_flags)
     )
 
 
