@@ -399,6 +399,14 @@ def check_outputs(
     """
     ins = [(label, Path(p)) for label, v in inputs.items() for p in _paths(v)]
     outs = [(label, Path(p)) for label, v in outputs.items() for p in _paths(v)]
+    for label, v in outputs.items():
+        for p in _paths(v):
+            # Path() drops a trailing separator: 'x.json/' (a folder meant) was written as the file x.json
+            if label not in FOLDER_OUTPUTS and str(p).endswith(("/", os.sep)) and str(p).strip("/" + os.sep):
+                raise OutputError(
+                    f"{label} {p}: ends in '{str(p)[-1]}', which names a folder; give a file name "
+                    f"(e.g. {str(p).rstrip('/' + os.sep)})"
+                )
     package = installed_package_dirs()
     for i, (label, out) in enumerate(outs):
         _check_name_length(label, out)  # first: a name too long makes every stat of it raise

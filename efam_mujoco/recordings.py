@@ -513,7 +513,7 @@ def write_csv(path: str | os.PathLike, recording: Recording, *, pressure_unit: s
 #: named warning).
 CHECKS = {
     "time-unit": "sample intervals no bench recorder makes (a time unit mix-up)",
-    "length-unit": "lengths a factor of ten or more off the muscle's resting length (a unit mix-up)",
+    "length-unit": "lengths in another unit than the header says (a factor of ten off the resting length, or forces that fit the model far better re-read)",
     "length-range": "lengths outside the muscle's admissible range",
     "rest-length": "a recording that never comes near the muscle's resting length",
     "pressure-range": "pressures above the rated pressure",
@@ -694,6 +694,43 @@ def _pressure_unit_fit(muscle, F, P, L, aligned, column: str, rated_pressure_Pa:
     return as_read, None
 
 
+def _length_unit_fit(muscle, F, P, L, column: str, admissible: tuple[float, float]):
+    """(model RMS error as read, (unit, its RMS error) or None): the length unit other than
+    ``column``'s under which ``muscle``'s force fits the recorded ``F`` best, when that is far
+    better (:data:`UNIT_ERROR_SHARE`, :data:`UNIT_ERROR_MATERIAL_N`, and explaining the force's
+    own variation) with every length re-read inside the muscle's ``admissible`` range. A
+    displacement is re-read from the resting length, a length from zero. Centimetres under a
+    displacement_in header put a FAM at 2.5 times the strain it reached, still within the
+    threads' geometric reach: only the forces tell."""
+    base, written = split_unit(column)
+    if written not in LENGTH or not np.any(P > muscle.deadband_Pa):
+        return 0.0, None
+    rest = muscle.rest_length_m
+    origin = rest if base == "displacement" else 0.0
+    lo, hi = admissible
+
+    def error(lengths):
+        with np.errstate(all="ignore"):
+            e = float(np.sqrt(np.mean((F - np.asarray(muscle.push(P, lengths), dtype=float)) ** 2)))
+        return e if np.isfinite(e) else math.inf
+
+    as_read = error(L)
+    best = None
+    for unit, size in LENGTH.items():
+        if unit == written:
+            continue
+        lengths = origin + (L - origin) * (size / LENGTH[written])
+        if float(np.min(lengths)) < lo or float(np.max(lengths)) > hi:
+            continue
+        e = error(lengths)
+        if best is None or e < best[1]:
+            best = (unit, e)
+    explains = best is not None and best[1] ** 2 <= 0.5 * float(np.var(F))
+    if explains and best[1] < UNIT_ERROR_SHARE * as_read and as_read - best[1] > UNIT_ERROR_MATERIAL_N:
+        return as_read, best
+    return as_read, None
+
+
 def check_plausibility(
     recordings,
     muscle,
@@ -842,6 +879,25 @@ def check_plausibility(
             aligned = np.asarray(free.push(Pc, Lc), dtype=float)
             span = np.linspace(float(np.min(Lc)), float(np.max(Lc)), 200)  # the recorded lengths only
             reach = np.asarray(free.push(float(np.max(Pc)), span), dtype=float)
+        # a length in another unit than its header's, within the admissible range (else the
+        # length checks above said it): the forces fit the model far better re-read, and a
+        # pressure re-read does not fit better still. Before the force checks, which would
+        # otherwise blame the load cell for forces the model was asked at the wrong lengths
+        if not (lengths_wrong or pressures_wrong):
+            length_as_read, length_unit = _length_unit_fit(
+                free, Fc, Pc, L[::step], lcol, (lo - LENGTH_TOLERANCE * rest, hi + LENGTH_TOLERANCE * rest)
+            )
+            if length_unit:
+                _, pressure_unit = _pressure_unit_fit(free, Fc, Pc, Lc, aligned, pcol, rated_pressure_Pa)
+                if pressure_unit is None or length_unit[1] < pressure_unit[1]:
+                    base, written = split_unit(lcol)
+                    findings.append(Finding("length-unit", (
+                        f"{src}: column '{lcol}': the forces fit the muscle's model with {length_unit[1]:.3g} N "
+                        f"RMS if the lengths were in {length_unit[0]} against "
+                        f"{length_as_read:.3g} N as read in "
+                        f"{written}: is the column's unit right? the numbers fit '{base}_{length_unit[0]}'"
+                    )))  # fmt: skip
+                    lengths_wrong = True
         model = aligned[np.isfinite(aligned)]
         capacity = float(np.max(np.abs(reach[np.isfinite(reach)]), initial=0.0))
         limit = 3.0 * capacity + 50.0

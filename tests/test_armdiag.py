@@ -106,6 +106,10 @@ def test_reader_units_dropouts_and_round_trip(tmp_path):
         (HEAD + "0,1,1,1,0,0,0\n0.1,1,,1,0,0,0\n", "line 3, column 3.*empty value"),
         ("time_s,foo_m\n", "unknown column"),
         (
+            HEAD.rstrip("\n") + ",p_s1m1_psi\n0,1,1,1,0,0,0,1\n",
+            r"line 1, columns 2 \('p_s1m1_kPa'\) and 8 \('p_s1m1_psi'\) give the same quantity; keep one",
+        ),
+        (
             HEAD + "0,0,0,0,0,0,200\n0.1,0,0.0,0e3,1,0,201\n",
             r"every command column \(p_s1m1_kPa, p_s1m2_kPa, p_s1m3_kPa\) is 0 in every row: nothing drives",
         ),

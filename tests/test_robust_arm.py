@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -194,6 +195,27 @@ def test_diagnose_arm_refuses_commands_tips_and_times_in_another_unit(lab, capsy
         text = Path(csv).read_text()
         Path(csv).write_text(text.replace(header[0], header[1], 1))
     run_bad(["diagnose-arm", csv, "--model", model], folder, capsys, *words)
+
+
+def test_diagnose_arm_warns_of_psi_under_kilopascals_on_an_arm_far_from_its_model(lab, capsys):
+    """Before: on a recording the nominal arm follows only to 59 mm (a leaking muscle), psi
+    written under 'p_*_kPa' left 119 mm as read, not under 0.3 x, and was diagnosed without a
+    word. A unit that halves the tip error is now said (the diagnosis runs, as read); the same
+    file in kPa says nothing."""
+    folder, model = lab[0], lab[1]
+    spec = load_arm_model(model)
+    truth = Truth("weak_muscle", {"leak_sqrt_Pa": 110.0}, muscle="s1m2")
+    rec = make_recording(spec, truth, "steps", np.random.default_rng(1), duration_s=12.0, rate_Hz=50.0,
+                         noise_m=5e-4)  # fmt: skip
+    for name, factor, said in (("psi_far.csv", 1 / 6.894757, True), ("kpa_far.csv", 1.0, False)):
+        csv = write_csv(
+            folder / name, ArmRecording(rec.time_s, rec.muscles, rec.command_Pa * factor, rec.tip_m)
+        )
+        code, _, err = run_cli(["diagnose-arm", str(csv), "--model", model], folder, capsys)
+        assert code == 0, err
+        warned = re.search(r"warning: .*follows the recorded tip with \d+(\.\d+)? mm RMS if the commands were in "
+                           r"psi .*'p_s1m1_psi' \(diagnosed as read\)", err)  # fmt: skip
+        assert bool(warned) == said, err
 
 
 def test_diagnose_arm_refuses_a_frozen_marker(lab, capsys):

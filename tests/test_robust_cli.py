@@ -1279,3 +1279,21 @@ def test_number_flags_read_a_negative_zero_as_zero(tmp_path, capsys):
     assert "-0.0" not in (tmp_path / "t.json").read_text()
     code, out, err = run_cli(["arm", "--disks", "2", "--pressures-kPa", "-0", "0", "-0.0"], tmp_path, capsys)
     assert code == 0 and "-0" not in out, err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["muscle", "FAM1", "--json", "m.json/"],
+        ["arm", "--pressures-kPa", "100", "--json", "a.json/"],
+        ["arm", "--xml", "arm.xml/"],
+        ["suite", "--episodes", "1", "--json", "s.json/"],
+        ["suite", "--episodes", "1", "--strip", "strip.png/"],
+    ],
+)
+def test_a_file_output_ending_in_a_separator_is_refused(tmp_path, capsys, argv):
+    """Before: '--json m.json/' (a folder meant) wrote the file m.json; the flags read as paths
+    (arm, suite) lost the separator before any check could see it."""
+    name = argv[-1].rstrip("/")
+    run_bad(argv, tmp_path, capsys, rf"{argv[-2]} {re.escape(argv[-1])}: ends in '/', which names a folder",
+            rf"e\.g\. {re.escape(name)}\)")  # fmt: skip

@@ -528,15 +528,20 @@ def test_diagnose_in_python_warns_of_kilopascals_given_as_pascals():
         check_values("force_offset", {"offset_N": 100.0000001})
 
 
+def _five_pressure_levels(folder: Path) -> tuple[list[str], Path]:
+    """The five FAM1 example recordings copied into ``folder``: their names, and the 45 psi one's path."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
+    names = [f"fam1_p{p}psi.csv" for p in (15, 30, 45, 60, 75)]
+    for name in names:
+        (folder / name).write_bytes((examples / name).read_bytes())
+    return names, folder / "fam1_p45psi.csv"
+
+
 def test_one_file_of_a_set_in_psi_under_a_kilopascal_header_is_refused(tmp_path, capsys):
     """Before: 45 psi written as '45 kPa' in one of five files passed every check; `calibrate`
     wrote a muscle with 46 N RMS error (its blocked-force stage dropped the level as an outlier)
     and `diagnose` named physics (`outside_library` 0.82, then a force offset and end effects)."""
-    examples = Path(__file__).resolve().parents[1] / "examples" / "recordings"
-    names = [f"fam1_p{p}psi.csv" for p in (15, 30, 45, 60, 75)]
-    for name in names:
-        (tmp_path / name).write_bytes((examples / name).read_bytes())
-    wrong = tmp_path / "fam1_p45psi.csv"
+    names, wrong = _five_pressure_levels(tmp_path)
     text = wrong.read_text()
     wrong.write_text(text.replace("pressure_psi", "pressure_kPa", 1))
     for verb in (
@@ -549,6 +554,37 @@ def test_one_file_of_a_set_in_psi_under_a_kilopascal_header_is_refused(tmp_path,
     wrong.write_text(text)
     code, _, err = run_cli(["calibrate", *names, "--muscle", "FAM1", "--out", "m.json"], tmp_path, capsys)
     assert code == 0 and "pressure-unit" not in err
+
+
+@pytest.mark.parametrize("header", ["displacement_in", "displacement_mm"])
+def test_lengths_in_centimetres_under_another_length_header_are_refused(tmp_path, capsys, header):
+    """Before: centimetres under 'displacement_in' put FAM1 at 2.5 times the strain it reached,
+    still inside the threads' geometric reach, so every length check passed; `calibrate` wrote a
+    muscle with 68 N RMS error (Eq. 14 error 469 %) and exit 0, and with one file of five
+    mislabelled the force-unit check blamed the good force column. The forces fit the model
+    re-read in centimetres, and the message says so; the files as written pass."""
+    names, wrong = _five_pressure_levels(tmp_path)
+    text = wrong.read_text()
+    lines = text.splitlines()
+    column = lines[0].split(",").index("length_m")
+    rows = [lines[0].replace("length_m", header)]
+    rest = load_muscle("FAM1").rest_length_m
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[column] = f"{(float(cells[column]) - rest) * 100:.9g}"  # the displacement in centimetres
+        rows.append(",".join(cells))
+    wrong.write_text("\n".join(rows) + "\n")
+    for verb in (
+        ["calibrate", *names, "--muscle", "FAM1", "--out", "m.json"],
+        ["diagnose", *names, "--muscle", "FAM1"],
+    ):
+        code, _, err = run_cli(verb, tmp_path, capsys)
+        assert code == 2 and not (tmp_path / "m.json").exists(), err
+        assert f"[length-unit] fam1_p45psi.csv: column '{header}'" in err and "'displacement_cm'" in err, err
+        assert "force-unit" not in err, err  # the good load cell is not blamed
+    wrong.write_text(text)
+    code, _, err = run_cli(["calibrate", *names, "--muscle", "FAM1", "--out", "m.json"], tmp_path, capsys)
+    assert code == 0 and "length-unit" not in err
 
 
 def test_suite_actions_outside_the_pressure_range_are_said_not_silently_clipped():

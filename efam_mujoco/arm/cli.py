@@ -232,12 +232,12 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
         "--timestep-ms", type=float, default=None,
         help="physics time step, ms (default: derived from the arm's stiffness, masses and damping)",
     )  # fmt: skip
-    parser.add_argument("--xml", type=Path, help="write the arm's MJCF to this file")
+    parser.add_argument("--xml", help="write the arm's MJCF to this file")
     parser.add_argument(
         "--pressures-kPa", type=float, nargs="+",
         help="one pressure per muscle, base section first: print the tip at rest, MuJoCo vs continuum reference",
     )  # fmt: skip
-    parser.add_argument("--json", type=Path, help="write the equilibrium as JSON to this file")
+    parser.add_argument("--json", help="write the equilibrium as JSON to this file")
     parser.add_argument(
         "--allow-large", action="store_true",
         help=f"build arms beyond {MAX_DEGREES_OF_FREEDOM} degrees of freedom (4 per spacer disk) even so: "

@@ -211,8 +211,10 @@ def _header_roles(header: list[str], muscles: list[str], label: str, head_line: 
         role = _classify(name, muscles, label, head_line, c)
         key = role[:2]
         if key in seen:
+            first = seen[key]
             raise ArmRecordingError(
-                f"{label}: line {head_line}, columns {seen[key]} and {c} ('{name}') give the same quantity"
+                f"{label}: line {head_line}, columns {first} ('{header[first - 1].strip()}') and {c} ('{name}') "
+                "give the same quantity; keep one"
             )
         seen[key] = c
         roles.append(role)

@@ -46,10 +46,9 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--strip",
-        type=Path,
         help="write an image strip of the controller's first episode (.png, .pdf, .svg, ...)",
     )
-    parser.add_argument("--json", type=Path, help="write the per-episode results as JSON")
+    parser.add_argument("--json", help="write the per-episode results as JSON")
 
 
 def _summary(results) -> dict:
