@@ -668,6 +668,18 @@ def _fast_strokes(rec: Recording, rest: float, tcol: str) -> str:
     )
 
 
+def _far_better(F, as_read: float, best):
+    """``(as_read, best)`` when the re-read unit's fit ``best`` ((unit, RMS error) or None) is far
+    better than the fit as read (:data:`UNIT_ERROR_SHARE`, :data:`UNIT_ERROR_MATERIAL_N`) and the
+    model so read explains the force's own variation (R^2 >= 0.5: a dead load cell's zeros also
+    sit nearer a muscle whose pressures are read a thousand times smaller); else
+    ``(as_read, None)``. The rule of the pressure-unit and length-unit checks."""
+    explains = best is not None and best[1] ** 2 <= 0.5 * float(np.var(F))
+    if explains and best[1] < UNIT_ERROR_SHARE * as_read and as_read - best[1] > UNIT_ERROR_MATERIAL_N:
+        return as_read, best
+    return as_read, None
+
+
 def _pressure_unit_fit(muscle, F, P, L, aligned, column: str, rated_pressure_Pa: float):
     """(model RMS error as read, (unit, its RMS error) or None): the pressure unit other than
     ``column``'s under which ``muscle``'s force fits the recorded ``F`` best, when that is far
@@ -686,12 +698,7 @@ def _pressure_unit_fit(muscle, F, P, L, aligned, column: str, rated_pressure_Pa:
             error = float(np.sqrt(np.mean((F - np.asarray(muscle.push(P * scale, L), dtype=float)) ** 2)))
         if np.isfinite(error) and (best is None or error < best[1]):
             best = (unit, error)
-    # and the model so read must explain the force's own variation (R^2 >= 0.5): a dead load
-    # cell's zeros also sit nearer a muscle whose pressures are read a thousand times smaller
-    explains = best is not None and best[1] ** 2 <= 0.5 * float(np.var(F))
-    if explains and best[1] < UNIT_ERROR_SHARE * as_read and as_read - best[1] > UNIT_ERROR_MATERIAL_N:
-        return as_read, best
-    return as_read, None
+    return _far_better(F, as_read, best)
 
 
 def _length_unit_fit(muscle, F, P, L, column: str, admissible: tuple[float, float]):
@@ -725,10 +732,7 @@ def _length_unit_fit(muscle, F, P, L, column: str, admissible: tuple[float, floa
         e = error(lengths)
         if best is None or e < best[1]:
             best = (unit, e)
-    explains = best is not None and best[1] ** 2 <= 0.5 * float(np.var(F))
-    if explains and best[1] < UNIT_ERROR_SHARE * as_read and as_read - best[1] > UNIT_ERROR_MATERIAL_N:
-        return as_read, best
-    return as_read, None
+    return _far_better(F, as_read, best)
 
 
 def check_plausibility(
