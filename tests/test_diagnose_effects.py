@@ -9,6 +9,7 @@ import pytest
 from efam_mujoco import load_muscle
 from efam_mujoco.diagnose import effects as E
 from efam_mujoco.recordings import Recording
+from efam_mujoco.stress import StressLaw
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +108,45 @@ def test_bladder_share_plus_pressure_term_is_eq2(fam1):
     gauge = np.maximum(P - fam1.deadband_Pa, 0)
     pressure = gauge / (4 * math.pi * fam1.turns**2) * (3 * L * L - fam1.thread_length_m**2)
     np.testing.assert_allclose(pressure + E.bladder_tension(fam1, P, L), fam1.tension(P, L), rtol=1e-10)
+
+
+def _eq2_with_longer_threads(muscle, P, L, stretch):
+    """Eq. 2 (paper sign) written out here for threads ``1 + stretch`` times as long: the sleeve
+    radius from B^2 = L^2 + (2 pi N R_o)^2, the wall from the bladder's volume, the strains from
+    the resting state (Sec. 2, Eqs. 1-4); the reference for the braid term below."""
+    B = muscle.thread_length_m * (1.0 + stretch)
+    N, V = muscle.turns, muscle.bladder_volume_m3
+    r_out = np.sqrt(B * B - L * L) / (2 * math.pi * N)
+    wall = r_out - np.sqrt(r_out * r_out - V / (math.pi * L))
+    eps_z = L / muscle.rest_length_m - 1.0
+    eps_c = (r_out - wall / 2) / (muscle.rest_outer_radius_m - muscle.rest_wall_thickness_m / 2) - 1.0
+    gauge = np.maximum(P - muscle.deadband_Pa, 0.0)
+    return (gauge / (4 * math.pi * N * N) * (3 * L * L - B * B) + muscle.stress(eps_z, P) * V / L
+            - muscle.stress(eps_c, P) * wall * L * L / (2 * math.pi * r_out * N * N))  # fmt: skip
+
+
+def test_braid_term_follows_a_stretch_of_the_threads_at_the_resting_length(fam1):
+    """Threads 0.3-2 % longer change the push force by what Eq. 2 with the longer threads gives,
+    within 12 %, at the resting length too, where the circumferential strain is zero and the
+    exponent law (Eq. 21, E3 < 1) has no finite slope. The tangent there was three times too steep
+    (the bench's braid stretches on strokes from rest were then named end effects)."""
+    law = StressLaw.from_dict("exponent", {"E1_Pa": 5.2e5, "E2": 2.0, "E3": 0.52, "E4": 1.3})
+    muscle = fam1.with_stress(law)
+    rest = muscle.rest_length_m
+    L = np.r_[np.full(4, rest), np.linspace(1.02, 1.5, 6) * rest]
+    P = np.r_[np.linspace(150e3, 517e3, 4), np.full(6, 400e3)]
+    assert np.max(np.abs(_eq2_with_longer_threads(muscle, P, L, 0.0) - muscle.tension(P, L))) < 1e-8
+    term = E.get("braid_compliance")
+    q = term.hoop_load(muscle, P, L)
+    for stretch in (0.003, 0.01, 0.02):
+        b1 = stretch / q  # a thread strain of exactly ``stretch`` at each sample
+        exact = -(_eq2_with_longer_threads(muscle, P, L, stretch) - muscle.tension(P, L))  # push sign
+        for i in range(len(P)):
+            sample = E.Sample(
+                t=0.0, P=P[i], L=L[i], P_prev=P[i], L_prev=L[i], dt=0.0, first=True, muscle=muscle
+            )
+            got = term.step({"b1_per_MPa": b1[i], "b2_per_MPa2": 0.0}, [], sample)
+            assert got == pytest.approx(exact[i], rel=0.12), (stretch, L[i], P[i])
 
 
 VALUES = {

@@ -201,6 +201,20 @@ def tension_with_thread(muscle: Muscle, P, L, thread_scale):
     )
 
 
+THREAD_SECANT = 0.01  # the thread stretch the braid term's slope spans (threads stretch 0.1-3 %)
+
+
+def braid_slope(muscle: Muscle, P, L):
+    """The push force's change per relative thread stretch, N: the secant of Eq. 2 from the
+    thread length B to B (1 + ``THREAD_SECANT``), divided by that stretch. Not the tangent: at the
+    resting length the circumferential strain is zero, where a stress law such as the exponent
+    law has no finite slope, and there the tangent stood three times the force a 1 % stretch
+    gives (the braid term then could not follow a thread stretch on strokes from rest). Threads
+    only lengthen, so the secant runs one way, towards a longer B."""
+    lengthened = tension_with_thread(muscle, P, L, 1.0 + THREAD_SECANT)
+    return -(lengthened - tension_with_thread(muscle, P, L, 1.0)) / THREAD_SECANT
+
+
 def bladder_tension(muscle: Muscle, P, L):
     """The bladder's share of Eq. 2 (the two stress terms), paper sign."""
     L = np.clip(np.asarray(L, dtype=float), muscle.min_length_m, muscle.max_length_m)
@@ -353,16 +367,9 @@ class Context:
         return self.cached("pressure_clock", make)
 
     def dF_dB(self):
-        """d push / d ln B (the force change per relative thread stretch)."""
-
-        def make():
-            h = 1e-6
-            m = self.muscle
-            up = tension_with_thread(m, self.P, self.L, 1 + h)
-            down = tension_with_thread(m, self.P, self.L, 1 - h)
-            return -(up - down) / (2 * h)
-
-        return self.cached("dB", make)
+        """The push force's change per relative thread stretch, as a secant over a stretch of
+        ``THREAD_SECANT`` (:func:`braid_slope`)."""
+        return self.cached("dB", lambda: braid_slope(self.muscle, self.P, self.L))
 
     def pressure_sign(self):
         """Sign of d push / d P from Eq. 2's pressure term: +1 where 3 L^2 < B^2 (pressure pushes)."""
@@ -723,14 +730,15 @@ class BraidCompliance(Effect):
             name="braid_compliance",
             summary="threads that stretch under their load (thread tension ~ hoop force ~ P R_o)",
             equation=(
-                "dF = (b1 q + b2 q^2) dF/d(ln B),  q = max(P - P_db, 0)[MPa] R_o(L)/R_rest "
+                "dF = (b1 q + b2 q^2) [F(B (1 + s)) - F(B)] / s with s = 1 % (the secant per thread stretch),  "
+                "q = max(P - P_db, 0)[MPa] R_o(L)/R_rest "
                 "(the thread strain is b1 q + b2 q^2)"
             ),
             params=(
                 Param("b1_per_MPa", 0.0, 0.2, meaning="thread strain per MPa of hoop load"),
                 Param("b2_per_MPa2", -0.2, 0.2, meaning="its curvature (crimp, stiffening)"),
             ),
-            plugin="efam.muscle keys braid_compliance.*; stateless, Eq. 2 with the thread length scaled by 1 +- h",
+            plugin="efam.muscle keys braid_compliance.*; stateless, Eq. 2 with the thread length scaled by 1.01",
             signature="a static error growing with pressure, shaped like a braid-angle change",
         )
 
@@ -773,9 +781,7 @@ class BraidCompliance(Effect):
         """One sample of the braid-stretch correction; see :class:`Effect.step`."""
         m = s.muscle
         q = float(self.hoop_load(m, s.P, s.L))
-        h = 1e-6
-        slope = -(tension_with_thread(m, s.P, s.L, 1 + h) - tension_with_thread(m, s.P, s.L, 1 - h)) / (2 * h)
-        force = (v["b1_per_MPa"] * q + v["b2_per_MPa2"] * q * q) * float(slope)
+        force = (v["b1_per_MPa"] * q + v["b2_per_MPa2"] * q * q) * float(braid_slope(m, s.P, s.L))
         return force if s.engaged else 0.0
 
 

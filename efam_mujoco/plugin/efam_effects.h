@@ -503,13 +503,15 @@ static double end_effects_step(const EffectsMuscle* k, const double* v, const Ef
   return s->engaged ? force : 0.0;
 }
 
-// BraidCompliance.step: thread strain b1 q + b2 q^2 times d push / d ln B.
+// BraidCompliance.step: thread strain b1 q + b2 q^2 times the push force's change per thread
+// stretch, a secant over a 1 % longer thread (effects.braid_slope: the tangent is unbounded at the
+// resting length under the exponent law).
+#define THREAD_SECANT 0.01
 static double braid_compliance_step(const EffectsMuscle* k, const double* v, const EffectSample* s) {
   double load = s->P - k->deadband;
   double q = (load > 0.0 ? load : 0.0) / 1e6 * fx_outer_radius(k, s->L) / k->rest_outer_radius;
-  double h = 1e-6;
-  double slope = -(fx_tension_with_thread(k, s->P, s->L, 1 + h) - fx_tension_with_thread(k, s->P, s->L, 1 - h)) /
-                 (2 * h);
+  double slope = -(fx_tension_with_thread(k, s->P, s->L, 1 + THREAD_SECANT) - fx_tension_with_thread(k, s->P, s->L, 1)) /
+                 THREAD_SECANT;
   double force = (v[0] * q + v[1] * q * q) * slope;
   return s->engaged ? force : 0.0;
 }
