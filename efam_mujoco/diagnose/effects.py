@@ -208,8 +208,9 @@ def braid_slope(muscle: Muscle, P, L):
     """The push force's change per relative thread stretch, N: the secant of Eq. 2 from the
     thread length B to B (1 + ``THREAD_SECANT``), divided by that stretch. Not the tangent: at the
     resting length the circumferential strain is zero, where a stress law such as the exponent
-    law has no finite slope, and there the tangent stood three times the force a 1 % stretch
-    gives (the braid term then could not follow a thread stretch on strokes from rest). Threads
+    law has no finite slope, and there the tangent stood 4-13 times the secant of a 0.3-2 %
+    stretch (FAM1 with E3 0.52, 150-517 kPa: the braid term then could not follow a thread stretch
+    on strokes from rest). Threads
     only lengthen, so the secant runs one way, towards a longer B."""
     lengthened = tension_with_thread(muscle, P, L, 1.0 + THREAD_SECANT)
     return -(lengthened - tension_with_thread(muscle, P, L, 1.0)) / THREAD_SECANT
@@ -366,7 +367,7 @@ class Context:
 
         return self.cached("pressure_clock", make)
 
-    def dF_dB(self):
+    def braid_slope(self):
         """The push force's change per relative thread stretch, as a secant over a stretch of
         ``THREAD_SECANT`` (:func:`braid_slope`)."""
         return self.cached("dB", lambda: braid_slope(self.muscle, self.P, self.L))
@@ -755,7 +756,7 @@ class BraidCompliance(Effect):
 
     def _design(self, ctx, shape):
         q = self.hoop_load(ctx.muscle, ctx.P, ctx.L)
-        d = ctx.dF_dB()
+        d = ctx.braid_slope()
         return np.zeros(ctx.n), _gate(ctx, np.column_stack([q * d, q * q * d]))
 
     def fit_basis(self, ctx):
