@@ -53,6 +53,20 @@ DEFAULT_LOCK_STIFFNESS = 2.0e4
 SIZE_RANGE_M = (1e-4, 10.0)
 MAX_DEADBAND_PA = 1.0e6
 MAX_LOCK_STIFFNESS_N_PER_M = 1e9
+#: A dead band is the pressure that takes up the slack between bladder and sleeve: the paper's
+#: are 34 kPa, and below 100 Pa (a thousandth of the pressures a muscle is driven with, under
+#: what a bench's pressure sensor resolves) none can be told from 0. A typed dead band in
+#: [ZERO_DEADBAND_PA, MIN_DEADBAND_PA) is a kPa value written as Pa (33.62 for 33.62 kPa) and is
+#: refused at every boundary (muscle files, the plugin's config, efam_muscle.c); below
+#: ZERO_DEADBAND_PA it is 0 for every purpose (under a millinewton on any muscle here), which is
+#: what a fit bounded below by 0 returns, so it passes. The Muscle itself takes any value in
+#: [0, MAX_DEADBAND_PA): the fits that build one (calibrate, diagnose) may land anywhere there.
+MIN_DEADBAND_PA = 100.0
+ZERO_DEADBAND_PA = 1.0
+#: The longest first-order pressure lag (s) an actuator may have (MuJoCo ``dynprm[0]`` of a
+#: filter): a valve and a tube fill a bladder in milliseconds to seconds (the pressure_lag
+#: effect's bound is 3 s); a minute is twenty times that, and a longer one never fills in a run.
+MAX_PRESSURE_LAG_S = 60.0
 #: gauge pressures ``free_length`` searches at: from vacuum to 100 MPa (past any fluidic muscle)
 ATMOSPHERE_PA = 101325.0
 MAX_GAUGE_PRESSURE_PA = 100e6
@@ -60,6 +74,19 @@ MAX_GAUGE_PRESSURE_PA = 100e6
 
 class MuscleError(ValueError):
     """Impossible muscle geometry or constants."""
+
+
+def deadband_problem(deadband_Pa: float) -> str:
+    """Why a dead band typed at a boundary (a file, the plugin's config) cannot be physical, ''
+    when it can: in [0, MAX_DEADBAND_PA), and not in [ZERO_DEADBAND_PA, MIN_DEADBAND_PA)."""
+    if not 0.0 <= deadband_Pa < MAX_DEADBAND_PA:
+        return f"must be in 0 .. {MAX_DEADBAND_PA:g} Pa: at {MAX_DEADBAND_PA / 1e3:g} kPa or more the muscle never inflates"
+    if ZERO_DEADBAND_PA <= deadband_Pa < MIN_DEADBAND_PA:
+        return (
+            f"a dead band of {deadband_Pa:g} Pa is below {MIN_DEADBAND_PA:g} Pa, under what a pressure sensor "
+            "tells from none (the paper's are 34 kPa): was it in kPa? Write 0 for no dead band"
+        )
+    return ""
 
 
 def _numbers(value, label: str, unit: str) -> np.ndarray:

@@ -37,14 +37,25 @@ from .muscle import (
     DEFAULT_LOCK_STIFFNESS,
     MAX_DEADBAND_PA,
     MAX_LOCK_STIFFNESS_N_PER_M,
+    MIN_DEADBAND_PA,
     NEUTRAL_BRAID_ANGLE_DEG,
     SIZE_RANGE_M,
     Geometry,
     Muscle,
     MuscleError,
+    deadband_problem,
 )
-from .stress import E1_PLAUSIBLE_PA, LAW_NAMES, StressLaw, StressLawError
-from .units import REQUIRED, UnitError, json_shown, read_quantity, split_unit
+from .stress import E1_PLAUSIBLE_PA, EXPONENT_E4_MAX, LAW_NAMES, StressLaw, StressLawError
+from .units import (
+    LENGTH,
+    PRESSURE,
+    REQUIRED,
+    UnitError,
+    json_shown,
+    read_quantity,
+    split_unit,
+    unit_that_fits,
+)
 
 FORMAT = "efam_mujoco.muscle/1"
 PRESETS = PRESET_NAMES  # one list, kept beside the output policy that refuses those names
@@ -78,10 +89,13 @@ _CONSTANTS = (("rest_length", "length"), ("rest_diameter", "length"), ("theta_re
 #: Plausible ranges (SI) of what a muscle file gives; outside them a value cannot be physical
 #: for a fluidic muscle and is most likely in another unit than its key says.
 PLAUSIBLE = {
-    "length": SIZE_RANGE_M,  # 0.1 mm .. 10 m, the Muscle's own bounds
-    # a braid's thread: 0 (no thickness modelled), or from a 10 um filament up (a 50 um thread
-    # was refused by the 0.1 mm floor of the other sizes while 0 passed)
-    "thickness": (1e-5, SIZE_RANGE_M[1]),
+    "length": SIZE_RANGE_M,  # 0.1 mm .. 10 m, the Muscle's own bounds (Festo sells DMSP up to 9 m)
+    # a sleeve, bladder, clamp or muscle across: 0.1 mm .. 20 cm, five times the widest fluidic
+    # muscle sold (Festo DMSP-40, 40 mm bore; the paper's is 2.9 cm): 12.7 "in" is 12.7 mm
+    "diameter": (SIZE_RANGE_M[0], 0.2),
+    # a braid's thread: 0 (no thickness modelled, see geometry_from_dict), or from a 10 um
+    # filament to 5 mm (the paper's 0.15 mm, the sleeve 0.28 mm; the catalogue's own bound)
+    "thickness": (1e-5, 5e-3),
     "volume": (1e-12, 1.0),
     "pressure": (0.0, 10e6),  # a dead band up to 10 MPa
     "angle": (0.0, 3.141592653589793 / 2),
@@ -135,6 +149,19 @@ def _no_duplicates(pairs):
     return seen
 
 
+def _string_at(text: str, i: int) -> tuple[int, bool]:
+    """(index of the closing quote, whether a ':' follows it) of the JSON string opening at
+    ``text[i]``: the scans below skip strings whole and tell keys from values."""
+    n = len(text)
+    end = i + 1
+    while end < n and text[end] != '"':
+        end += 2 if text[end] == "\\" else 1
+    after = end + 1
+    while after < n and text[after] in " \t\r\n":
+        after += 1
+    return end, after < n and text[after] == ":"
+
+
 def _where_refused(text: str) -> tuple[int, int]:
     """(line, column) of the first NaN/Infinity token, over-long integer or key repeated in its object in ``text``
     (JSON the standard decoder accepts but the hooks refuse); (1, 1) when not found."""
@@ -143,13 +170,8 @@ def _where_refused(text: str) -> tuple[int, int]:
     while i < n:
         c = text[i]
         if c == '"':
-            end = i + 1
-            while end < n and text[end] != '"':
-                end += 2 if text[end] == "\\" else 1
-            after = end + 1
-            while after < n and text[after] in " \t\r\n":
-                after += 1
-            if objects and objects[-1] is not None and after < n and text[after] == ":":
+            end, is_key = _string_at(text, i)
+            if objects and objects[-1] is not None and is_key:
                 key = text[i + 1 : end]
                 if key in objects[-1]:
                     break
@@ -176,6 +198,45 @@ def _where_refused(text: str) -> tuple[int, int]:
     return line, i - (text.rfind("\n", 0, i) + 1) + 1
 
 
+def _stray_character(text: str) -> tuple[int, str] | None:
+    """(index, key) of the first non-ASCII character outside a JSON string in ``text`` (a no-break
+    or thin space inside a number, a typographic quote) and the last key before it ('' if none):
+    JSON takes none there, and its decoder's "Expecting ',' delimiter" did not say what it met."""
+    i, n, key = 0, len(text), ""
+    while i < n:
+        c = text[i]
+        if c == '"':
+            end, is_key = _string_at(text, i)
+            if is_key:
+                key = text[i + 1 : end]
+            i = end + 1
+            continue
+        if ord(c) > 127:
+            return i, key
+        i += 1
+    return None
+
+
+def _stray_message(text: str, label: str) -> str | None:
+    """The error naming line, column, key and character of :func:`_stray_character`, or None."""
+    found = _stray_character(text)
+    if found is None:
+        return None
+    i, key = found
+    c = text[i]
+    line, column = text.count("\n", 0, i) + 1, i - (text.rfind("\n", 0, i) + 1) + 1
+    name = unicodedata.name(c, "unnamed").lower()
+    after = f" after key '{key}'" if key else ""
+    if c.isspace() or unicodedata.category(c) in ("Zs", "Cf"):
+        why = "JSON's only spaces are the ASCII space, tab and line break, and a number holds none"
+    else:
+        why = "JSON's quotes, brackets and digits are ASCII (a typographic quote?)"
+    return (
+        f"{label}: line {line}, column {column}: not valid JSON: the character U+{ord(c):04X} ({name}){after} "
+        f"is outside a string; {why}"
+    )
+
+
 def parse_json_text(data: bytes, label: str) -> object:
     """Strict JSON from bytes: UTF-8 (a BOM is allowed), no NaN/Infinity, no duplicate keys;
     errors name ``label``, the line and the column."""
@@ -193,8 +254,11 @@ def parse_json_text(data: bytes, label: str) -> object:
             text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates, parse_int=_bounded_int
         )
     except json.JSONDecodeError as err:
+        # a non-ASCII character outside a string is never JSON: name it, where the decoder
+        # only said what it expected (a no-break space inside 33.62 was "Expecting ',' delimiter")
+        stray = _stray_message(text, label)
         raise MuscleFileError(
-            f"{label}: line {err.lineno}, column {err.colno}: not valid JSON ({err.msg})"
+            stray or f"{label}: line {err.lineno}, column {err.colno}: not valid JSON ({err.msg})"
         ) from None
     except ValueError as err:  # the hooks' refusals (NaN, a key twice) know no position: find it
         line, column = _where_refused(text)
@@ -299,19 +363,29 @@ def _check_keys(block: dict, allowed_bases: dict[str, str | None], where: str) -
         raise MuscleFileError(f"{where}: unknown key '{key}' (known: {known})")
 
 
-_SI_UNIT = {"length": "m", "thickness": "m", "volume": "m3", "pressure": "Pa", "angle": "rad"}
+_SI_UNIT = {
+    "length": "m",
+    "diameter": "m",
+    "thickness": "m",
+    "volume": "m3",
+    "pressure": "Pa",
+    "angle": "rad",
+}
 
 
 def _plausible(value: float, block: dict, base: str, quantity: str, where: str) -> float:
-    """``value`` (SI) when plausible for a fluidic muscle, else an error naming the key as the
-    file wrote it and, for a factor of 1000 off, the unit that would fit."""
+    """``value`` (SI) when plausible for a fluidic muscle (``quantity``: a key of PLAUSIBLE), else
+    an error naming the key as the file wrote it, the range and the unit that would fit."""
     lo, hi = PLAUSIBLE[quantity]
     if lo < value <= hi or (quantity == "pressure" and value == 0.0):
         return value
     key = next((k for k in block if split_unit(k)[0] == base), base)
     unit = split_unit(key)[1] or ""
     hint = ""
-    if value > hi and lo < value / 1000 <= hi:
+    if quantity in ("length", "diameter", "thickness"):  # mm, cm, m or in: the one that fits
+        fits = unit_that_fits(value, math.sqrt(lo * hi), key, LENGTH, within=(lo, hi))
+        hint = f"; was it in {split_unit(fits)[1]} (write '{fits}')?" if fits else ""
+    elif value > hi and lo < value / 1000 <= hi:
         smaller = {"m": "mm", "Pa": "", "kPa": "Pa", "MPa": "kPa", "m3": "L"}.get(unit, "")
         if quantity == "volume":
             smaller = "L" if unit == "m3" else ""
@@ -323,11 +397,12 @@ def _plausible(value: float, block: dict, base: str, quantity: str, where: str) 
     )
 
 
-def _quantity(block: dict, base: str, quantity: str, where: str, default=REQUIRED):
+def _quantity(block: dict, base: str, quantity: str, where: str, default=REQUIRED, kind: str | None = None):
+    """``<base>_<unit>`` of ``block`` in SI, plausible as ``kind`` (default: ``quantity``)."""
     value = read_quantity(block, base, quantity, where, default)
     if value is None or value is default:
         return value
-    return _plausible(value, block, base, quantity, where)
+    return _plausible(value, block, base, kind or quantity, where)
 
 
 def geometry_from_dict(g: dict, where: str) -> Geometry:
@@ -339,11 +414,15 @@ def geometry_from_dict(g: dict, where: str) -> Geometry:
     values = {}
     for k in _GEOMETRY_LENGTHS:
         value = read_quantity(g, k, "length", where)
-        values[f"{k}_m"] = (
-            (value if value == 0 else _plausible(value, g, k, "thickness", where))
-            if k == "thread_thickness"
-            else _plausible(value, g, k, "length", where)
-        )
+        # A thread thickness of 0 is kept as a legitimate idealisation: it enters only Eq. 6,
+        # as the room the sleeve takes in the clamping channel, and 0 says it takes none (a
+        # channel measured inside the sleeve, or fittings that clamp the bladder alone). Any
+        # other value must be a thread that could exist.
+        if k == "thread_thickness" and value == 0:
+            values[f"{k}_m"] = 0.0
+            continue
+        kind = "thickness" if k == "thread_thickness" else "diameter" if "diameter" in k else "length"
+        values[f"{k}_m"] = _plausible(value, g, k, kind, where)
     angle = _quantity(g, "sleeve_angle_ref", "angle", where, default=None)
     if angle is not None:
         values["sleeve_angle_ref_deg"] = angle * 180.0 / 3.141592653589793
@@ -435,7 +514,8 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
         for base, quantity in _CONSTANTS[:2] + _CONSTANTS[3:]:
             key = f"{base}_{'m3' if quantity == 'volume' else 'm'}"
             derived = constants.get(key)  # from the geometry block, if any
-            value = _quantity(given, base, quantity, where, default=derived)
+            kind = "diameter" if base == "rest_diameter" else quantity
+            value = _quantity(given, base, quantity, where, default=derived, kind=kind)
             if value is None:
                 raise MuscleFileError(f"{where}: missing key '{key}' (or a 'geometry' block)")
             if (
@@ -476,6 +556,15 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
                 f"{label}: key '{key}' = {doc.get(key)!r} is a dead band of {deadband / 1e3:g} kPa, not below "
                 f"the {MAX_DEADBAND_PA / 1e3:g} kPa the package drives a muscle with at most (the rig's "
                 f"control range and the rated pressure): the muscle would never inflate{hint}"
+            )
+        if deadband_problem(deadband):  # a kPa value written as Pa (33.62 for 33.62 kPa)
+            key = next((k for k in doc if split_unit(k)[0] == "deadband"), "deadband_Pa")
+            fits = unit_that_fits(deadband, 34e3, key, PRESSURE, within=(MIN_DEADBAND_PA, MAX_DEADBAND_PA))
+            hint = f"; was it in {split_unit(fits)[1]} (write '{fits}')?" if fits else ""
+            raise MuscleFileError(
+                f"{label}: key '{key}' = {doc.get(key)!r} is a dead band of {deadband:g} Pa, which cannot be "
+                f"physical: expected 0 (none) or {MIN_DEADBAND_PA:g} Pa .. {MAX_DEADBAND_PA / 1e3:g} kPa (the "
+                f"paper's are 34 kPa; below {MIN_DEADBAND_PA:g} Pa no pressure sensor tells one from none){hint}"
             )
         stress = stress_from_document(doc, label, law)
         lock = doc.get("lock_stiffness_N_per_m", DEFAULT_LOCK_STIFFNESS)
@@ -654,6 +743,12 @@ def stress_from_document(doc: dict, label: str, law: str | None = None) -> Stres
                     f"{label}: stress law '{other}': coefficient '{key}' = {value:g} cannot be physical "
                     f"(|value| above {MAX_COEFFICIENT:g}; a bladder's moduli are MPa)"
                 )
+        if other == "exponent" and coefficients["E4"] > EXPONENT_E4_MAX:
+            raise MuscleFileError(
+                f"{label}: stress law 'exponent': coefficient 'E4' = {coefficients['E4']:g} cannot be physical: "
+                f"the strain-stiffening exponent (dimensionless) of a rubber bladder lies in 1 .. "
+                f"{EXPONENT_E4_MAX:g} (the paper's are 1.35 and 1.52; Ogden's largest for rubber about 5)"
+            )
         modulus = coefficients["E1_Pa"]  # every law's first coefficient: the bladder's modulus
         low, high = E1_PLAUSIBLE_PA
         if not low <= modulus <= high:

@@ -9,7 +9,7 @@ convention); a ``tension_N`` column (positive = pulls, the paper's Eq. 2 sign) i
 CSV format (one file = one :class:`Recording`; a file may hold several pressures and both loading
 and unloading)::
 
-    # lines starting with '#' are comments
+    # lines starting with '#' are comments (those among the data rows are reported)
     time_s,length_m,pressure_kPa,force_N
     0.000,0.17018,103.4,40.1
     ...
@@ -36,7 +36,11 @@ to or before the previous row's) are an error naming the file, the line and the 
 ``recording.meta["dropped_rows"]`` (line, column, reason); :func:`drop_report` words that list for
 the user. Input files are only ever read. The separator is the comma and the decimal mark the
 point: a semicolon- or tab-separated file and a decimal comma are refused with a message that
-says so (a decimal comma is not guessed at: it could be a thousands separator).
+says so (a decimal comma is not guessed at: it could be a thousands separator). A cell may have
+ASCII spaces or tabs round its value; a no-break or thin space (U+00A0, U+202F) anywhere in it is
+a bad value naming the character. Comment rows ('#') are skipped: ``meta["comment_rows"]`` counts
+them and ``meta["comment_lines_in_data"]`` lists those after the header (commented-out samples),
+which :func:`read_recordings` reports (:func:`comment_report`).
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ import math
 import os
 import re
 import sys
+import unicodedata
 import warnings
 from array import array
 from dataclasses import dataclass, field
@@ -150,7 +155,7 @@ def _columns(header: list[str], label: str, line: int) -> dict[str, tuple[int, s
     """Map each role to (column index, header, base, factor to SI with sign)."""
     found: dict[str, tuple[int, str, str, float]] = {}
     for index, raw in enumerate(header):
-        name = raw.strip()
+        name = raw.strip(CELL_SPACE)
         if not name:
             raise RecordingError(
                 f"{label}: line {line}, column {index + 1}: empty header (expected {_ACCEPTED})"
@@ -273,10 +278,11 @@ def open_recording(path: Path, label: str):
         raise RecordingError(f"{label}: cannot open ({err.strerror})") from None
 
 
-def csv_rows(handle, label: str):
+def csv_rows(handle, label: str, comments: array | None = None):
     """(first line, last line, row) of each CSV row of an open recording that is not blank and
     not a '#' comment, decoded by the rules of :func:`_decoded_lines`; last > first when a
-    quoted field ran over lines (an unclosed quote), which the caller names with a bad row."""
+    quoted field ran over lines (an unclosed quote), which the caller names with a bad row.
+    ``comments`` (an ``array("q")``), when given, receives the line number of every comment row."""
     reader = csv.reader(_decoded_lines(handle, label))
     while True:
         first = reader.line_num + 1
@@ -286,7 +292,10 @@ def csv_rows(handle, label: str):
             return
         except csv.Error as err:
             raise RecordingError(f"{label}: line {first}: not a CSV row ({err})") from None
-        if not _skip(row):
+        if _is_comment(row):
+            if comments is not None:
+                comments.append(first)
+        elif not _skip(row):
             yield first, reader.line_num, row
 
 
@@ -328,13 +337,15 @@ def read_csv(
     order = ("time", "length", "pressure", "force")
     values = [array("d") for _ in order]
     lines = array("q")
+    comments = array("q")  # the line of every '#' row, before the header and among the data
+    header_line = 0
     dropped: list[dict] = []
     last_time = -math.inf
     with handle:
-        for first, last, row in csv_rows(handle, label):
+        for first, last, row in csv_rows(handle, label, comments):
             line = first  # a quoted field can carry a row over several lines
             if columns is None:
-                header, columns = row, _columns(row, label, line)
+                header, columns, header_line = row, _columns(row, label, line), line
                 continue
             parsed, problem = _parse_row(row, header, columns, order)
             if problem is None and parsed[0] <= last_time:
@@ -391,6 +402,10 @@ def read_csv(
         "rest_length_m": rest,
         "dropped_rows": dropped,
         "lines": np.frombuffer(lines, dtype=np.int64).copy(),
+        # '#' rows skipped: how many in all, and the lines of those after the header (a
+        # commented-out sample, not a preamble), which read_recordings tells the user
+        "comment_rows": len(comments),
+        "comment_lines_in_data": [c for c in comments if c > header_line],
     }
     return Recording(time_s, length, pressure, force, meta)
 
@@ -398,8 +413,17 @@ def read_csv(
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
 
 
+#: the whitespace a cell may have around its value: ASCII only (a no-break space, U+00A0, is
+#: refused with the cell, never stripped: it is no space a CSV writer puts there)
+CELL_SPACE = " \t"
+
+
+def _is_comment(row: list[str]) -> bool:
+    return bool(row) and row[0].lstrip(CELL_SPACE).startswith("#")
+
+
 def _skip(row: list[str]) -> bool:
-    return not row or all(not cell.strip() for cell in row) or row[0].lstrip().startswith("#")
+    return not row or all(not cell.strip(CELL_SPACE) for cell in row) or _is_comment(row)
 
 
 def decimal_cell(text: str, scale: float = 1.0) -> tuple[float | None, str]:
@@ -413,6 +437,13 @@ def decimal_cell(text: str, scale: float = 1.0) -> tuple[float | None, str]:
         value = float(text)
     except ValueError:
         hint = " (a decimal comma? write decimal points)" if _DECIMAL_COMMA.match(text) else ""
+        odd = next((c for c in text if not c.isascii()), "")
+        if odd:  # float() strips a no-break space round a number: name it instead
+            kind = "space" if odd.isspace() or unicodedata.category(odd) in ("Zs", "Cf") else "character"
+            hint = (
+                f" (it holds U+{ord(odd):04X}, {unicodedata.name(odd, 'unnamed').lower()}: a number is plain "
+                f"ASCII digits{', with no spaces inside' if kind == 'space' else ''})"
+            )
         return None, f"not a number: {_shown(text)!r}{hint}"
     if not math.isfinite(value):
         return None, f"not a finite number: {_shown(text)!r}"
@@ -439,7 +470,7 @@ def _parse_row(row, header, columns, order):
     out = []
     for role in order:
         index, name, _, scale = columns[role]
-        text = row[index].strip()
+        text = row[index].strip(CELL_SPACE)
         if not text:
             return None, (name, "empty value")
         value, problem = decimal_cell(text, scale)
@@ -472,18 +503,34 @@ def drop_report(recording: Recording, limit: int = 5) -> str:
     )
 
 
+def comment_report(recording: Recording, limit: int = 5) -> str:
+    """One line telling the user how many '#' rows among the data rows (after the header) were
+    skipped, and where ('' when none): a commented-out sample is not read. Comment lines before
+    the header (a preamble, the format's documented use) are only counted in ``meta``."""
+    inside = recording.meta.get("comment_lines_in_data") or []
+    if not len(inside):
+        return ""
+    shown = ", ".join(str(int(line)) for line in inside[:limit])
+    more = f"; and {len(inside) - limit} more" if len(inside) > limit else ""
+    return (
+        f"{shown_path(recording.meta.get('source', 'recording'))}: skipped {len(inside)} comment row(s) "
+        f"('#') among the data rows, not read as samples: line(s) {shown}{more}"
+    )
+
+
 def read_recordings(
     paths, *, rest_length_m: float | None = None, on_bad_rows: str = "error", warn=None
 ) -> list[Recording]:
-    """Read several CSV files (see :func:`read_csv`); with ``on_bad_rows="drop"`` each file's
-    dropped rows are told to ``warn`` (a callable taking one line; default: standard error)."""
+    """Read several CSV files (see :func:`read_csv`); each file's '#' rows among its data
+    (:func:`comment_report`) and, with ``on_bad_rows="drop"``, its dropped rows are told to
+    ``warn`` (a callable taking one line; default: standard error)."""
     warn = warn or (lambda line: print(line, file=sys.stderr))
     recordings = []
     for path in paths:
         recording = read_csv(path, rest_length_m=rest_length_m, on_bad_rows=on_bad_rows)
-        note = drop_report(recording)
-        if note:
-            warn(note)
+        for note in (comment_report(recording), drop_report(recording)):
+            if note:
+                warn(note)
         recordings.append(recording)
     return recordings
 

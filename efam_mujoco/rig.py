@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .muscle import NEUTRAL_BRAID_ANGLE_DEG, Muscle
+from .muscle import MAX_PRESSURE_LAG_S, NEUTRAL_BRAID_ANGLE_DEG, Muscle
 from .plugin import actuator_dynamics, effect_pairs, effects_config, instance_xml
 from .plugin import load as load_plugin
 from .units import check_pressure_Pa, check_within
@@ -77,6 +77,11 @@ class RigOptions:
             _finite(
                 self.pressure_lag_s, "RigOptions.pressure_lag_s (or None for no lag)", low=1e-9, unit=" s"
             )
+            if self.pressure_lag_s > MAX_PRESSURE_LAG_S:  # the plugin refuses such a dynprm too
+                raise ValueError(
+                    f"RigOptions.pressure_lag_s must be at most {MAX_PRESSURE_LAG_S:g} s (a valve and a tube "
+                    f"fill a bladder in milliseconds to seconds; was it in ms?), got {self.pressure_lag_s!r}"
+                )
         _finite(self.max_pressure_Pa, "RigOptions.max_pressure_Pa", low=1.0, unit=" Pa")
         _finite(self.min_pressure_Pa, "RigOptions.min_pressure_Pa", low=-P_ATM, unit=" Pa")
         if not self.min_pressure_Pa < self.max_pressure_Pa:

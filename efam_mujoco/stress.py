@@ -95,6 +95,11 @@ _E2 = (0.0, _INF, False, False)  # E2 >= 0: pressure stiffens the bladder (paper
 #: the bladder moduli a muscle can have (Pa): soft silicone to stiff rubber; the calibration
 #: searches inside it, and a muscle file's E1 outside it is refused (an MPa value written as Pa)
 E1_PLAUSIBLE_PA = (1e4, 5e7)
+#: the largest strain-stiffening exponent E4 of the exponent law a rubber bladder can have: the
+#: paper's are 1.35 and 1.52 (Table 4) and Ogden's exponents for rubber reach about 5 (Treloar's
+#: data: 1.3, 5, -2); a muscle file's or the plugin's E4 above it is refused (700 had loaded,
+#: its stress a muscle's strain of 1.5 to the power 700)
+EXPONENT_E4_MAX = 10.0
 _E1_SEARCH = E1_PLAUSIBLE_PA
 _E2_SEARCH = (0.0, 20.0)
 

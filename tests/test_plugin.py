@@ -299,6 +299,12 @@ BAD_CONFIGS = {
         r"lock_stiffness_N_per_m.*0 \.\. 1e9",
     ),
     "bladder wall thinner than any": (_set(GOOD, bladder_volume_m3="1e-11"), r"bladder_volume_m3.*wall"),
+    # 33.62 kPa written as Pa, and the exponent law's stiffening exponent of 700 (the paper's 1.35)
+    "dead band in kPa written as Pa": (
+        _set(GOOD, deadband_Pa="33.62"),
+        r"'deadband_Pa' = 33\.62 is invalid: a dead band below 100 Pa.*was it in kPa\? Write 0",
+    ),
+    "exponent E4 700": (_set(EXPONENT, E4="700"), r"'E4' = 700 is invalid: cannot be physical.*1 \.\. 10"),
     "bladder misfit at rest": (
         _set(GOOD, bladder_volume_m3=repr(1.05 * _volume_filling_sleeve_at_rest(FAM1))),
         "bladder_volume_m3.*resting length",
@@ -361,6 +367,35 @@ def test_unknown_config_key_is_rejected():
 def test_wrong_activation_setup_is_rejected(attrs, expected):
     with pytest.raises(ValueError, match=expected):
         mujoco.MjModel.from_xml_string(model_xml(FAM1, attrs))
+
+
+@pytest.mark.parametrize("dyntype", ["filter", "filterexact"])
+@pytest.mark.parametrize("tau", ["1e30", "61", "-0.05"])
+def test_pressure_lag_beyond_any_valve_is_rejected(dyntype, tau):
+    """A pressure lag's time constant (dynprm) of 1e30 s compiled: the muscle never filled."""
+    with pytest.raises(
+        ValueError,
+        match=r"actuator 0: dynprm\[0\] = .* s, the pressure lag's time constant, must be in 0 \.\. 60 s",
+    ):
+        mujoco.MjModel.from_xml_string(model_xml(FAM1, f'dyntype="{dyntype}" dynprm="{tau}" actdim="1"'))
+    mujoco.MjModel.from_xml_string(model_xml(FAM1, f'dyntype="{dyntype}" dynprm="60" actdim="1"'))  # compiles
+
+
+def test_dead_band_below_100_Pa_is_refused_in_a_model_and_written_as_zero_from_a_fit():
+    """0 (none) and a fit's numerical zero (below 1 Pa) compile; 1 .. 100 Pa typed in a model is
+    a kPa value in Pa. The Python writer takes a muscle a fit built (diagnose's re-fit is bounded
+    at 0 only): a dead band under 100 Pa, none a bench tells from 0, is written as 0 and compiles."""
+    from dataclasses import replace
+
+    for value in ("0", "0.5", "100"):
+        mujoco.MjModel.from_xml_string(model_xml(FAM1, config=_set(GOOD, deadband_Pa=value)))
+    for value in ("1", "99.9"):
+        with pytest.raises(ValueError, match=r"deadband_Pa.*below 100 Pa"):
+            mujoco.MjModel.from_xml_string(model_xml(FAM1, config=_set(GOOD, deadband_Pa=value)))
+    config = plugin_config(replace(FAM1, deadband_Pa=33.62))
+    assert float(config["deadband_Pa"]) == 0.0
+    mujoco.MjModel.from_xml_string(model_xml(FAM1, config=_set(GOOD, deadband_Pa=config["deadband_Pa"])))
+    assert float(plugin_config(replace(FAM1, deadband_Pa=150.0))["deadband_Pa"]) == 150.0
 
 
 # ----------------------------------------------------------------------- threads and copies

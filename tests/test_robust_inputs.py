@@ -136,9 +136,12 @@ def test_catalogue_fibre_fraction_above_one_is_refused_through_the_cli(tmp_path,
         (lambda d: d["rules"].update(max_gather_ratio=0.5), r"'max_gather_ratio' = 0\.5"),
         (lambda d: d["rules"].update(max_pressure_kPa=1e6), r"'max_pressure_kPa' = 1000000\.0 \(1e\+06 kPa\)"),
         (lambda d: d["rules"].update(thread_thickness_mm=15), r"'thread_thickness_mm' = 15 \(15 mm\)"),
+        # 12.7 mm written as inches: a 32 cm latex tube passed the old half-metre bound
+        (lambda d: d["tubings"][0].update(inner_diameter_in=12.7),
+         r"tubings\[0\].*'inner_diameter_in' = 12\.7 \(322\.58 mm\).*\[0\.1, 200\] mm; was it in mm \(write 'inner_diameter_mm'\)"),
     ],
     ids=["wall", "thickness", "diameter", "density", "rating", "elongation", "safety", "euler", "clamp-gap",
-         "diameter-growth", "length-growth", "gather", "max-pressure", "thread"],
+         "diameter-growth", "length-growth", "gather", "max-pressure", "thread", "tube-bore-in-inches"],
 )  # fmt: skip
 def test_every_catalogue_quantity_has_a_physical_range(tmp_path, edit, expect):
     with pytest.raises(CatalogueError, match=expect):
@@ -841,3 +844,62 @@ def test_the_default_shared_folder_absent_is_still_skipped_cleanly(tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("festo_calibrate: skipped, ") and "is absent" in done.stdout
     assert not (tmp_path / "r.json").exists()
+
+
+def _constants_file(folder: Path, **changes) -> Path:
+    """A contractile muscle given by its constants (a Festo DMSP-20-like McKibben), as a file."""
+    doc = {
+        "format": "efam_mujoco.muscle/1", "name": "dmsp20",
+        "constants": {"rest_length_m": 0.274, "rest_diameter_m": 0.03, "theta_rest_deg": 65.0,
+                      "bladder_volume_m3": 2e-5},
+        "deadband_kPa": 20.0, "tension_only": True,
+        "stress": {"default": "exponent", "laws": {"exponent": {"E1_Pa": 5e5, "E2": 1.0, "E3": 0.5, "E4": 1.5}}},
+    }  # fmt: skip
+    for key, value in changes.items():
+        doc["stress"]["laws"]["exponent"][key] = value
+    path = folder / "dmsp20.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_an_exponent_law_stiffening_exponent_no_rubber_has_is_refused(tmp_path, capsys):
+    """E4 = 700 loaded on a contractile muscle, whose strains keep |eps|^700 finite; the paper's
+    are 1.35 and 1.52."""
+    assert load_muscle(_constants_file(tmp_path, E4=10.0)).stress.name == "exponent"  # the bound itself
+    run_bad(["muscle", _constants_file(tmp_path, E4=700.0).name, "--json", "out.json"], tmp_path, capsys,
+            r"dmsp20\.json: stress law 'exponent': coefficient 'E4' = 700 cannot be physical",
+            r"dimensionless.*lies in 1 \.\. 10")  # fmt: skip
+
+
+def test_the_plausibility_bounds_take_every_real_muscle():
+    """The presets, a Festo DMSP-40 (40 mm bore, lengths to 9 m) and a 1.8 mm thin McKibben load."""
+    for name in ("FAM1", "FAM2"):
+        load_muscle(name)
+    doc = musclefile.muscle_document(load_muscle("FAM1"))
+    for diameter, length in ((0.05, 9.0), (0.0018, 0.05)):
+        constants = {"rest_length_m": length, "rest_diameter_m": diameter, "theta_rest_deg": 60.0}
+        constants["bladder_volume_m3"] = 0.2 * np.pi * diameter**2 / 4 * length
+        musclefile.muscle_from_document({**doc, "constants": constants, "tension_only": True}, "real")
+
+
+@pytest.mark.parametrize("lag_s", [1e30, 61.0])
+def test_a_pressure_lag_no_valve_has_is_refused_in_python_as_by_the_plugin(lag_s):
+    from efam_mujoco.plugin import actuator_dynamics
+
+    with pytest.raises(ValueError, match=r"RigOptions\.pressure_lag_s must be at most 60 s.*was it in ms"):
+        rig.RigOptions(pressure_lag_s=lag_s)
+    with pytest.raises(ValueError, match=r"pressure lag \(dynprm\) .* s must be in 0 \.\. 60 s"):
+        actuator_dynamics(lag_s=lag_s)
+    assert 'dynprm="60.0"' in actuator_dynamics(lag_s=60.0)
+
+
+def test_a_fitted_dead_band_below_100_Pa_is_zero():
+    """A hinge fit on a muscle with no dead band lands a few Pa from 0; a muscle file refuses 1 ..
+    100 Pa (a kPa value written as Pa), so the fit says 0 (none a bench can tell from 0)."""
+    from efam_mujoco.calibrate import fit_blocked
+
+    P = np.linspace(50e3, 500e3, 10)
+    F = 2e-4 * (P - 40.0)  # a dead band of 40 Pa
+    fit = fit_blocked(P, F)
+    assert fit.deadband_Pa == 0.0 and fit.slope_N_per_Pa == pytest.approx(2e-4, rel=1e-3)
+    assert fit_blocked(P, 2e-4 * (P - 30e3)).deadband_Pa == pytest.approx(30e3)

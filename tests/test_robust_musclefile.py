@@ -152,8 +152,61 @@ CASES = [
     # loaded before, then the rig 'went unstable ... a load in the wrong unit' with no load given
     (
         "wider than long",
+        {**fam1(), "constants": {"rest_diameter_m": 0.18}},
+        [
+            r"a resting diameter of 0\.18 m is not below the resting length 0\.17018 m",
+            r"longer than it is wide",
+        ],
+    ),
+    # wider than any fluidic muscle (a 2 m diameter passed to the check above)
+    (
+        "diameter of 2 m",
         {**fam1(), "constants": {"rest_diameter_m": 2.0}},
-        [r"a resting diameter of 2 m is not below the resting length 0\.17018 m", r"longer than it is wide"],
+        [r"constants: key 'rest_diameter_m' = 2\.0 cannot be physical.*expected 0\.0001 \.\. 0\.2 m"],
+    ),
+    # 12.7 mm written as inches: 32 cm of bladder bore ("must be below its outer diameter" named no key)
+    (
+        "bladder bore 12.7 in",
+        {
+            **fam1(),
+            "geometry": {
+                **{k: v for k, v in fam1()["geometry"].items() if k != "bladder_inner_diameter_m"},
+                "bladder_inner_diameter_in": 12.7,
+            },
+        },
+        [
+            r"geometry: key 'bladder_inner_diameter_in' = 12\.7 cannot be physical.*\(0\.32258 m; expected 0\.0001 \.\. 0\.2 m\)",
+            r"write 'bladder_inner_diameter_mm'",
+        ],
+    ),  # fmt: skip
+    # 33.62 kPa written as Pa: a dead band no pressure sensor tells from none
+    (
+        "dead band in kPa written as Pa",
+        renamed(None, "deadband_kPa", "deadband_Pa"),
+        [
+            r"key 'deadband_Pa' = 33\.62 is a dead band of 33\.62 Pa, which cannot be physical",
+            r"0 \(none\) or 100 Pa \.\. 1000 kPa",
+            r"write 'deadband_kPa'",
+        ],
+    ),  # fmt: skip
+    # the exponent law's stiffening exponent: the paper's 1.35; 700 loaded on a contractile muscle
+    (
+        "exponent E4 700",
+        edited(stress__laws__exponent__E4=700.0),
+        [r"stress law 'exponent': coefficient 'E4' = 700 cannot be physical", r"1 \.\. 10"],
+    ),
+    # a no-break space inside a number: "Expecting ',' delimiter" did not say what it met
+    (
+        "no-break space in a number",
+        json.dumps(fam1(), indent=1).replace("33.62", "33\u00a062").encode(),
+        [
+            r"line 20, column 20: not valid JSON: the character U\+00A0 \(no-break space\) after key 'deadband_kPa'"
+        ],
+    ),
+    (
+        "thin space before a number",
+        json.dumps(fam1(), indent=1).replace("33.62", "\u202f33.62").encode(),
+        [r"line 20, column 18: .*U\+202F \(narrow no-break space\) after key 'deadband_kPa'"],
     ),
     ("tiny length", edited(geometry__rest_length_m=1e-9), [r"rest_length_m"]),
     ("deadband Pa labelled kPa", edited(deadband_kPa=33620.0), [r"deadband_kPa.*cannot be physical", r"Pa"]),

@@ -108,6 +108,17 @@ PARSE_CASES = [
     ("too few fields", with_row(5, "1,0.17,100"), r"line 6.*3 fields"),
     ("empty value", row(6, length=""), r"line 6, column 'length_m': empty"),
     ("not a number", row(6, pressure="abc"), r"line 6, column 'pressure_kPa': not a number"),
+    # a no-break or thin space pasted from a spreadsheet: float() stripped one round the number
+    (
+        "no-break space after a number",
+        row(6, pressure="100\u00a0"),
+        r"line 6, column 'pressure_kPa': not a number: .*U\+00A0, no-break space",
+    ),
+    (
+        "thin space inside a number",
+        row(6, force="1\u202f040"),
+        r"line 6, column 'force_N': not a number: .*U\+202F, narrow no-break space.*no spaces inside",
+    ),
     (
         "comma decimal",
         row(6, length='"0,17"'),
@@ -488,6 +499,32 @@ def test_missing_and_folder_inputs(tmp_path, capsys):
     for command in ("calibrate", "diagnose"):
         run_bad([command, "nope.csv", "--muscle", "FAM1"], tmp_path, capsys, r"nope\.csv: cannot open")
         run_bad([command, "folder.csv", "--muscle", "FAM1"], tmp_path, capsys, r"folder\.csv: is a folder")
+
+
+def test_comment_rows_among_the_data_are_counted_and_reported(tmp_path, capsys):
+    """'#' rows were dropped without a word: a commented-out sample is now counted in meta and
+    reported by the commands; a preamble before the header is only counted."""
+    lines = good_text().splitlines()
+    lines[4] = "#" + lines[4]  # a sample commented out (line 5)
+    lines.insert(9, "# valve opened")  # a note among the data (line 10)
+    _write(tmp_path, "# bench 2, FAM1\n" + "\n".join(lines) + "\n")
+    rec = read_csv(tmp_path / "rec.csv")
+    assert rec.meta["comment_rows"] == 3 and rec.meta["comment_lines_in_data"] == [6, 11]
+    assert len(rec) == len(good_rows()) - 1
+    code, out, err = run_cli(
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--stress", "linear", "--no-heldout"], tmp_path, capsys
+    )
+    assert code == 0, err
+    assert (
+        "rec.csv: skipped 2 comment row(s) ('#') among the data rows, not read as samples: line(s) 6, 11"
+        in err
+    )
+    _write(tmp_path, "# bench 2, FAM1\n" + good_text())
+    assert read_csv(tmp_path / "rec.csv").meta["comment_rows"] == 1
+    code, out, err = run_cli(
+        ["calibrate", "rec.csv", "--muscle", "FAM1", "--stress", "linear", "--no-heldout"], tmp_path, capsys
+    )
+    assert code == 0 and "comment" not in err, err
 
 
 def test_drop_policy_still_names_the_rows(tmp_path, capsys):

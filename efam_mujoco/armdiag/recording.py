@@ -48,6 +48,7 @@ import numpy as np
 
 from ..files import write_text_atomic
 from ..recordings import (
+    CELL_SPACE,
     MAX_INTERVAL_S,
     MIN_INTERVAL_S,
     RecordingError,
@@ -238,7 +239,7 @@ def _parse_arm_row(row: list[str], line: int, last: int, header: list[str], role
         )
     out = []
     for c, (cell, (role, _key, scale)) in enumerate(zip(row, roles)):
-        cell = cell.strip()
+        cell = cell.strip(CELL_SPACE)  # ASCII only: a no-break space is refused, never stripped
         where = f"{label}: line {line}, column {c + 1} ('{header[c].strip()}')"
         if not cell:
             if role in ("tip", "extra"):

@@ -148,6 +148,12 @@ static const char* const kAttributes[] = {
 #define MIN_WALL_M 1e-5         // bladder wall at rest
 #define MAX_COEFFICIENT 1e12    // |stress-law coefficient|: stiffer than diamond
 #define MAX_DEADBAND_PA 1.0e6   // the largest pressure the package drives a muscle with
+// muscle.MIN_DEADBAND_PA, ZERO_DEADBAND_PA: a dead band of 1 .. 100 Pa is a kPa value written as Pa
+// (no pressure sensor tells it from none); below 1 Pa it is 0 for every purpose (a fit's zero)
+#define MIN_DEADBAND_PA 100.0
+#define ZERO_DEADBAND_PA 1.0
+#define MAX_PRESSURE_LAG_S 60.0  // muscle.MAX_PRESSURE_LAG_S: a filter's dynprm[0], seconds
+#define EXPONENT_E4_MAX 10.0     // stress.EXPONENT_E4_MAX: the exponent law's stiffening exponent
 #define MIN_E1_PA 1e4           // bladder modulus (stress.E1_PLAUSIBLE_PA): soft silicone ..
 #define MAX_E1_PA 5e7           // .. stiff rubber
 #define MAX_LOCK_STIFFNESS 1e9  // N/m, as a muscle file's lock_stiffness_N_per_m
@@ -789,6 +795,14 @@ static void check_actuators(const mjModel* m, int instance) {
     if (m->actuator_ctrlnum[i] != 1 || m->actuator_outnum[i] != 1) {
       CONFIG_ERROR(m, instance, "needs a scalar transmission (one control, one force output)%s", "");
     }
+    // the pressure lag's time constant (rig.actuator_xml writes it; 0 is no lag, as MuJoCo reads it)
+    double tau = m->actuator_dynprm[i * mjNDYN];
+    if ((dyntype == mjDYN_FILTER || dyntype == mjDYN_FILTEREXACT) && !(tau >= 0 && tau <= MAX_PRESSURE_LAG_S)) {
+      CONFIG_ERROR(m, instance,
+                   "actuator %d: dynprm[0] = %.10g s, the pressure lag's time constant, must be in 0 .. %g s: a "
+                   "valve and a tube fill a bladder in milliseconds to seconds (was it in ms?)",
+                   i, tau, MAX_PRESSURE_LAG_S);
+    }
   }
 }
 
@@ -824,12 +838,19 @@ static Muscle* muscle_create(const mjModel* m, int instance) {
           mu.bladder_volume, "must be in (0, 1] m^3");
   require(m, instance, mu.deadband >= 0 && mu.deadband < MAX_DEADBAND_PA, "deadband_Pa", mu.deadband,
           "must be in 0 .. 1e6 Pa: at 1000 kPa or more the muscle never inflates (was it in kPa?)");
+  require(m, instance, !(mu.deadband >= ZERO_DEADBAND_PA && mu.deadband < MIN_DEADBAND_PA), "deadband_Pa",
+          mu.deadband,
+          "a dead band below 100 Pa is under what a pressure sensor tells from none (the paper's are 34 kPa): "
+          "was it in kPa? Write 0 for no dead band");
   require(m, instance, mu.lock_stiffness >= 0 && mu.lock_stiffness <= MAX_LOCK_STIFFNESS, "lock_stiffness_N_per_m",
           mu.lock_stiffness, "must be in 0 .. 1e9 N/m");
   mu.law = read_law(m, instance);
   read_coefficients(m, instance, &mu);
   require(m, instance, mu.coef[0] >= MIN_E1_PA && mu.coef[0] <= MAX_E1_PA, "E1_Pa", mu.coef[0],
           "cannot be physical for a bladder: its modulus lies in 1e4 .. 5e7 Pa (was it in MPa?)");
+  require(m, instance, mu.law != LAW_EXPONENT || mu.coef[3] <= EXPONENT_E4_MAX, "E4", mu.coef[3],
+          "cannot be physical: the exponent law's strain-stiffening exponent of a rubber bladder lies in 1 .. 10 "
+          "(the paper's are 1.35 and 1.52)");
   derive(m, instance, &mu);
   check_stable(m, instance, &mu);
   effects_configure(m, instance, &mu.effects, EFFECTS_MUSCLE_OF(mu));  // efam_effects.h

@@ -16,20 +16,23 @@ from pathlib import Path
 from ..musclefile import (
     MAX_REST_OVER_BLADDER,
     MIN_WALL_M,
+    PLAUSIBLE,
     MuscleFileError,
     parse_json_text,
     read_small_file,
 )
-from ..units import UnitError, is_control, json_shown, read_quantity, split_unit
+from ..units import LENGTH, UnitError, is_control, json_shown, read_quantity, split_unit, unit_that_fits
 
 FORMAT = "efam_mujoco.catalogue/1"
 
 #: Physical ranges of every catalogue quantity, SI: ``(low, high, low_open)``; a value outside
 #: cannot describe a part (most likely another unit than its key says, or a percentage written
-#: for a fraction). Lengths: a sleeve or tube from 0.1 mm to half a metre across; a braid from
-#: 0.01 mm to 10 mm thick; a bladder wall at least what a muscle file accepts (MIN_WALL_M).
+#: for a fraction). Lengths: a sleeve or tube from 0.1 mm to 20 cm across (a muscle file's own
+#: bound, five times the widest fluidic muscle sold, Festo's DMSP-40: a tube of 12.7 "in" is
+#: 12.7 mm); a braid from 0.01 mm to 10 mm thick; a bladder wall at least what a muscle file
+#: accepts (MIN_WALL_M).
 RANGES = {
-    "diameter": (1e-4, 0.5, False),
+    "diameter": (PLAUSIBLE["diameter"][0], PLAUSIBLE["diameter"][1], False),
     "thickness": (1e-5, 0.01, False),
     "wall": (MIN_WALL_M, 0.05, False),
     # no solid is lighter than 100 or denser than osmium's 22 590 kg/m^3
@@ -176,6 +179,9 @@ def _in_range(value: float, block: dict, base: str, where: str, kind: str, quant
     hint = (
         "; a fraction, not a percentage" if kind in ("fraction", "elongation_at_break") and value > 1 else ""
     )
+    if quantity == "length" and lo > 0:  # the length unit under which the number would fit
+        fits = unit_that_fits(value, math.sqrt(lo * hi), key, LENGTH, within=(lo, hi))
+        hint = f"; was it in {split_unit(fits)[1]} (write '{fits}')?" if fits else hint
     raise CatalogueError(
         f"{where}: key '{key}' = {block.get(key)!r}{shown} is outside the physical range "
         f"{bracket}{lo * scale:g}, {hi * scale:g}]{u}{hint}"
