@@ -122,18 +122,24 @@ def _verdict_inputs(d) -> dict:
             "delta_bic": {c["name"]: c["delta_bic"] for c in d.candidates}}  # fmt: skip
 
 
-def try_recommendation(case, recording, nominal, d, seed: int) -> dict:
+def try_recommendation(
+    case, recording, nominal, d, seed: int, earlier=(), second_round: bool = False
+) -> dict:
     """Run the recommended next experiment of diagnosis ``d`` with the concealed truth, diagnose
-    both recordings together, and judge the joined answer on the joined data."""
+    it with ``recording`` (and the ``earlier`` next experiments), and judge the joined answer on
+    the joined data. ``second_round``: when the joined answer is still ambiguous, run what its
+    own diagnosis recommends too, as a lab would, and judge the three recordings together
+    (``"second"``; beside the issue's line, which is one experiment)."""
     kind = case.kind
     rec = d.next_experiment["recommended"]
     e = experiment(rec["name"], d.ctx, stroke_speed(d.ctx, d.labels), rec.get("set_points"))
     extra = V.run_plan(case, e.t, e.L, e.P, min(case.sample_hz, 100.0), seed)
-    d2 = diagnose([recording, extra], nominal, next_experiment=False)
+    recordings = [recording, *earlier, extra]
+    d2 = diagnose(recordings, nominal, next_experiment=False)
     # the joined answer is judged on the joined data: the new test can make an effect show
     # that the first recording hid (or an effect that showed is still there)
     shows_joined, left_joined = (
-        V.identifiable(case, recording, nominal, more=(extra.meta["noise_free"],))
+        V.identifiable(case, recording, nominal, more=tuple(r.meta["noise_free"] for r in recordings[1:]))
         if case.effects
         else (True, 0.0)
     )
@@ -149,7 +155,17 @@ def try_recommendation(case, recording, nominal, d, seed: int) -> dict:
         **_verdict_inputs(d2),
     }  # fmt: skip
     out["resolved"] = bool(out["confident"] and out["correct"])
+    if second_round and d2.verdict.ambiguous:
+        d2 = diagnose(recordings, nominal)  # the same answer, now with its own recommendation
+        if d2.next_experiment and d2.next_experiment.get("recommended"):
+            second = try_recommendation(case, recording, nominal, d2, seed, earlier=recordings[1:])
+            out["second"] = {k: second[k] for k in SECOND_KEYS}
     return out
+
+
+#: what a second round's row keeps
+SECOND_KEYS = ("experiment", "expected_z", "duration_s", "answer", "probability", "confident", "ambiguous_after",
+               "correct", "resolved")  # fmt: skip
 
 
 def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
@@ -185,7 +201,7 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
     # the next experiment is tried on every ambiguous case, whatever its family: the truth model
     # runs the recommended protocol with the concealed effect, and both recordings are diagnosed
     if try_next and v.ambiguous and d.next_experiment and d.next_experiment.get("recommended"):
-        row["next"] = try_recommendation(case, recording, nominal, d, seed)
+        row["next"] = try_recommendation(case, recording, nominal, d, seed, second_round=True)
         # side by side in the same run: what the recommendation would have been, and done,
         # without the optimal-design candidate (it can also change which test is paired or
         # repeated, so the design is always made again; the same test is not run twice)
@@ -268,6 +284,13 @@ def summarise(rows: list[dict]) -> dict:
             "next_resolved_expected": _frac(r["next"]["resolved"] for r in expected),
             # beside it (not the goal's figure): the pair told apart and the answer right, at any
             # probability (rows from before the field was recorded give None)
+            # beside it: resolved by the recommended experiment, or by a second one where the
+            # joined answer was still ambiguous (as a lab would go on); rows from before the second
+            # round was run count their first round only
+            "next_resolved_within_two": _frac(
+                r["next"]["resolved"] or (r["next"].get("second") or {}).get("resolved", False) for r in amb
+            ),
+            "next_second_tried": sum(bool(r["next"].get("second")) for r in amb),
             "next_separated_right": _frac(
                 r["next"]["correct"] and not r["next"]["ambiguous_after"] for r in amb
             ) if all("ambiguous_after" in r["next"] for r in amb) else None,
@@ -285,7 +308,7 @@ def summarise(rows: list[dict]) -> dict:
 def print_summary(s: dict) -> None:
     keys = ("n", "top1_confident", "confident", "false_alarm", "ambiguous_in_library", "tentative_in_library", "ece",
             "median_heldout_reduction", "median_reduction_bound", "outside_wrong_name_p08", "outside_dd_improves", "next_tried", "next_resolved",
-            "next_resolved_without_optimal")  # fmt: skip
+            "next_resolved_without_optimal", "next_resolved_within_two")  # fmt: skip
     print(f"\n{'family':12s}" + "".join(f"{k[:14]:>15s}" for k in keys))
     for fam, b in s["by_family"].items():
         cells = []
@@ -643,6 +666,8 @@ def _line(row: dict, k: int, n: int) -> None:
     nxt = ""
     if row["next"]:
         nxt = f" next {row['next']['experiment']} -> {row['next']['answer']} ({'resolved' if row['next']['resolved'] else 'not resolved'})"
+        if second := row["next"].get("second"):
+            nxt += f", then {second['experiment']} -> {second['answer']} ({'resolved' if second['resolved'] else 'not resolved'})"
         alt = row.get("next_without_optimal")
         if alt and alt is not row["next"]:  # the same test is stored as the same row
             nxt += f"; without the optimal design {alt['experiment']} -> {alt['answer']} ({'resolved' if alt['resolved'] else 'not resolved'})"
