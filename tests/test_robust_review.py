@@ -152,8 +152,22 @@ def test_a_plausible_pressure_stiffening_is_accepted(tmp_path):
 
 
 def test_a_geometry_the_rig_cannot_settle_names_the_file_the_cause_and_kilopascals(tmp_path, capsys):
-    # a sleeve of 30 cm typed for 3 cm: the braid angle at rest is 74 deg, a contractile muscle
-    name = _fam1_with(tmp_path, lambda d: d["geometry"].update(sleeve_diameter_ref_m=0.3))
+    # a braid angle at rest of 74 deg given as a constant: a contractile muscle the rig cannot settle
+    def contractile(doc):
+        del doc["geometry"]
+        doc["constants"] = {"rest_length_m": 0.17018, "rest_diameter_m": 0.03014, "theta_rest_deg": 74.0,
+                            "bladder_volume_m3": 1.8858e-05}  # fmt: skip
+
+    name = _fam1_with(tmp_path, contractile)
     run_bad(["muscle", name, "--pressures-kPa", "300"], tmp_path, capsys,
             r"m\.json: muscle 'FAM1': the rig did not settle", r"at 300 kPa", r"braid angle at rest is 74\.\d deg",
             r"contracts under pressure")  # fmt: skip
+
+
+def test_a_sleeve_typed_ten_times_too_wide_is_refused_before_the_rig(tmp_path, capsys):
+    # a sleeve of 30 cm typed for 3 cm (it made a 74 deg braid the rig could not settle): no
+    # fluidic muscle is that wide, and the file is refused naming the key, the range and the unit
+    name = _fam1_with(tmp_path, lambda d: d["geometry"].update(sleeve_diameter_ref_m=0.3))
+    run_bad(["muscle", name, "--pressures-kPa", "300"], tmp_path, capsys,
+            r"m\.json: geometry: key 'sleeve_diameter_ref_m' = 0\.3 cannot be physical", r"0\.0001 \.\. 0\.2 m",
+            r"was it in cm")  # fmt: skip
