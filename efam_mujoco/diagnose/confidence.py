@@ -115,24 +115,24 @@ class Calibration:
     """Constants of the probability map (fitted on the calibration seeds; see the module text)."""
 
     concentration: float = 1.0  # Dirichlet weights of the Bayesian bootstrap (1 = Rubin's)
-    a: float = -3.059  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain + offset[term])))
-    b: float = 7.145
-    c: float = -8.400
+    a: float = -3.517  # logistic p_physics = 1 / (1 + exp(-(a + b cut + c dd_gain + offset[term])))
+    b: float = 8.120
+    c: float = -7.832
     #: a draw whose best two effects are within this share of held-out RMS is half a win each
     #: (not fitted). Between an effect and ``none`` the relevance margin decides alone: a tie
     #: there too left a dead zone (an effect beating ``none`` by 3-5 % split 50:50 however much
     #: data were added), which no next experiment could resolve
     tie_margin: float = 0.02
-    an: float = 3.285  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
-    bn: float = -34.489
-    cn: float = -23.207
-    dn: float = -0.924  # weight of the best effect's paired separation from none (``best_effect_z``)
+    an: float = 3.447  # p(none is right) = 1 / (1 + exp(-(an + bn excess + cn dd_gain + dn z_best / 5)))
+    bn: float = -34.693
+    cn: float = -26.322
+    dn: float = -0.656  # weight of the best effect's paired separation from none (``best_effect_z``)
     #: per library term, the offset of p_physics's log-odds (0 for a term not listed): the terms
     #: an unmodelled effect most often hides behind (end effects, viscoelasticity, a drift) sit below 0
     effect_offset: dict[str, float] = field(
         default_factory=lambda: {
-            "braid_compliance": 0.734, "drift": -1.262, "end_effects": -2.806, "force_offset": -0.185,
-            "friction": 0.122, "pressure_lag": 1.791, "softening": 2.321, "viscoelasticity": -0.745,
+            "braid_compliance": 0.914, "drift": -1.555, "end_effects": -1.316, "force_offset": -0.461,
+            "friction": -0.189, "pressure_lag": 1.516, "softening": 2.117, "viscoelasticity": -1.062,
         }
     )  # fmt: skip
     offset_ridge: float = 0.100  # the ridge weight on the offsets the cross-validation chose

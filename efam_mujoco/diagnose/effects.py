@@ -201,7 +201,6 @@ def tension_with_thread(muscle: Muscle, P, L, thread_scale):
     )
 
 
-END_SECANT = 0.01  # the active-length shift (share of L_rest) the end-effect term's secant spans
 THREAD_SECANT = 0.01  # the thread stretch the braid term's slope spans (threads stretch 0.1-3 %)
 
 
@@ -277,18 +276,6 @@ class Context:
         h = 1e-6 * self.muscle.rest_length_m
         m = self.muscle
         return self.cached("dL", lambda: (m.push(self.P, self.L + h) - m.push(self.P, self.L - h)) / (2 * h))
-
-    def length_shift_slope(self):
-        """The push's change per active-length shift of one resting length (N): the central
-        secant of Eq. 2 over +-``END_SECANT`` L_rest at every sample. Not the tangent: at the
-        resting length the bladder's strain is zero, where a stress law such as the exponent law
-        has no finite slope, while an end zone that shifts the active length by a few percent moves
-        the force by a finite amount there."""
-        m = self.muscle
-        h = END_SECANT * m.rest_length_m
-        return self.cached(
-            "dL_shift", lambda: (m.push(self.P, self.L + h) - m.push(self.P, self.L - h)) / (2 * END_SECANT)
-        )
 
     def dF_dP(self):
         """Slope of the muscle's push with pressure at every sample (N/Pa), central difference."""
@@ -704,59 +691,35 @@ class Viscoelasticity(Effect):
 
 
 class EndEffects(Effect):
-    """End effects: the zones near the fittings are not cylinders, so the active cylinder is not
-    the muscle. Two ways that shows: the cylinder strains more than the muscle (Tondu's strain
-    factor k = 1 + kappa(P), a correction proportional to the stroke), and the end zones change
-    length with pressure (caps that bulge, cones that draw in), shifting the active length by
-    delta(P) L_rest even at the resting length, where the strain factor does nothing."""
+    """End effects: the fittings shorten the active length, a correction proportional to the length slope of the force."""
 
     def __init__(self):
         super().__init__(
             name="end_effects",
             summary="non-cylindrical ends near the fittings: the cylinder strains more than the "
-            "muscle (Tondu's strain factor k = 1 + kappa, falling with pressure), and end zones "
-            "whose length changes with pressure shift the active length",
-            equation=(
-                "dF = (kappa0 + kappa1 exp(-P/P_e)) (L - L_rest) dF/dL "
-                "+ delta (1 - exp(-P/P_e)) [F(L + s L_rest) - F(L - s L_rest)] / 2s,  s = 1 %"
-            ),
+            "muscle (Tondu's strain factor k = 1 + kappa, falling with pressure)",
+            equation="dF = (kappa0 + kappa1 exp(-P/P_e)) (L - L_rest) dF/dL",
             params=(
                 Param("kappa0", 0.0, 0.5, meaning="strain amplification at high pressure"),
                 Param("kappa1", -0.5, 0.5, meaning="its excess at low pressure"),
                 Param("P_e_kPa", 10.0, 1000.0, True, (30.0, 80.0, 200.0, 500.0), "pressure scale"),
-                Param(
-                    "delta",
-                    -0.2,
-                    0.2,
-                    meaning="active-length shift at high pressure (share of the resting length)",
-                    default=0.0,
-                ),
             ),
-            plugin=(
-                "efam.muscle keys end_effects.*; stateless, evaluates the model at L +- 1e-6 L_rest "
-                "and at L +- 1 % L_rest"
-            ),
+            plugin="efam.muscle keys end_effects.*; stateless, evaluates the model at L +- h",
             signature="a static error growing with the stroke, changing with pressure",
         )
 
     def _design(self, ctx, shape):
         base = (ctx.L - ctx.muscle.rest_length_m) * ctx.dF_dL()
         decay = np.exp(-ctx.P / (shape["P_e_kPa"] * 1e3))
-        shift = (1.0 - decay) * ctx.length_shift_slope()
-        return np.zeros(ctx.n), _gate(ctx, np.column_stack([base, decay * base, shift]))
+        return np.zeros(ctx.n), _gate(ctx, np.column_stack([base, decay * base]))
 
     def step(self, v, state, s: Sample) -> float:
         """One sample of the end-effect correction; see :class:`Effect.step`."""
         m = s.muscle
         h = 1e-6 * m.rest_length_m
         slope = (m.push(s.P, s.L + h) - m.push(s.P, s.L - h)) / (2 * h)
-        decay = math.exp(-s.P / (v["P_e_kPa"] * 1e3))
-        force = (v["kappa0"] + v["kappa1"] * decay) * (s.L - m.rest_length_m) * slope
-        delta = v.get("delta", 0.0)
-        if delta:
-            wide = END_SECANT * m.rest_length_m
-            shift = (m.push(s.P, s.L + wide) - m.push(s.P, s.L - wide)) / (2 * END_SECANT)
-            force += delta * (1.0 - decay) * float(shift)
+        kappa = v["kappa0"] + v["kappa1"] * math.exp(-s.P / (v["P_e_kPa"] * 1e3))
+        force = kappa * (s.L - m.rest_length_m) * slope
         return force if s.engaged else 0.0
 
 

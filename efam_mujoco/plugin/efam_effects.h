@@ -84,10 +84,7 @@ static const EffectSpec kEffects[NEFFECT] = {
       {"tau_s", 0.1, 500.0},
       {"g_slow_bladder", 0.0, 1.0, 1, 0.0}},
      3},
-    {"end_effects",
-     4,
-     {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}, {"delta", -0.2, 0.2, 1, 0.0}},
-     0},
+    {"end_effects", 3, {{"kappa0", 0.0, 0.5}, {"kappa1", -0.5, 0.5}, {"P_e_kPa", 10.0, 1000.0}}, 0},
     {"braid_compliance", 2, {{"b1_per_MPa", 0.0, 0.2}, {"b2_per_MPa2", -0.2, 0.2}}, 0},
     {"softening", 2, {{"a", 0.0, 1.0}, {"width", 1e-3, 0.5}}, 1},
     {"drift",
@@ -497,21 +494,12 @@ static double viscoelasticity_step(const EffectsMuscle* k, const double* v, doub
   return s->engaged ? force : 0.0;
 }
 
-// EndEffects.step: Tondu's strain factor times the model's stiffness dF/dL, plus an active-length
-// shift delta (1 - exp(-P/P_e)) L_rest times the central secant of the push over +-1 % L_rest
-// (effects.EndEffects, Context.length_shift_slope: the tangent is unbounded at the resting length
-// under the exponent law).
-#define END_SECANT 0.01
+// EndEffects.step: Tondu's strain factor times the model's stiffness dF/dL.
 static double end_effects_step(const EffectsMuscle* k, const double* v, const EffectSample* s) {
   double h = 1e-6 * k->rest_length;
   double slope = (fx_push(k, s->P, s->L + h) - fx_push(k, s->P, s->L - h)) / (2 * h);
-  double decay = exp(-s->P / (v[2] * 1e3));
-  double force = (v[0] + v[1] * decay) * (s->L - k->rest_length) * slope;
-  if (v[3] != 0.0) {
-    double wide = END_SECANT * k->rest_length;
-    double shift = (fx_push(k, s->P, s->L + wide) - fx_push(k, s->P, s->L - wide)) / (2 * END_SECANT);
-    force += v[3] * (1.0 - decay) * shift;
-  }
+  double kappa = v[0] + v[1] * exp(-s->P / (v[2] * 1e3));
+  double force = kappa * (s->L - k->rest_length) * slope;
   return s->engaged ? force : 0.0;
 }
 
