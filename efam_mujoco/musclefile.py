@@ -40,6 +40,7 @@ from .muscle import (
     MIN_DEADBAND_PA,
     NEUTRAL_BRAID_ANGLE_DEG,
     SIZE_RANGE_M,
+    ZERO_DEADBAND_PA,
     Geometry,
     Muscle,
     MuscleError,
@@ -813,7 +814,11 @@ def muscle_document(muscle: Muscle, laws: dict[str, StressLaw] | None = None, **
             "theta_rest_deg": muscle.theta_rest_deg,
             "bladder_volume_m3": muscle.bladder_volume_m3,
         },
-        "deadband_kPa": muscle.deadband_Pa / 1e3,
+        # a fitted dead band (calibrate's and diagnose's fits are bounded at 0 only) under what a
+        # bench tells from none is written as none: the reader refuses 1 .. 100 Pa as kPa typed as Pa
+        "deadband_kPa": 0.0
+        if ZERO_DEADBAND_PA <= muscle.deadband_Pa < MIN_DEADBAND_PA
+        else muscle.deadband_Pa / 1e3,
         "tension_only": muscle.tension_only,
         "lock_stiffness_N_per_m": muscle.lock_stiffness_N_per_m,
         "stress": {"default": muscle.stress.name, "laws": {k: v.to_dict() for k, v in laws.items()}},

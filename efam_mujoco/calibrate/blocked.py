@@ -26,7 +26,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..muscle import MIN_DEADBAND_PA
 from .data import Samples, local_value
 
 OUTLIER_SIGMAS = 4.0
@@ -103,8 +102,6 @@ def fit_blocked(pressure_Pa, tension_N, rest_diameter_m: float | None = None) ->
             "different pressures"
         )
     deadband, slope = _hinge(kept, F[inlier])
-    if deadband < MIN_DEADBAND_PA:  # none a bench can tell from 0 (and a muscle file refuses 1 .. 100 Pa)
-        deadband, slope = 0.0, _hinge_slope(kept, F[inlier], 0.0)
     residual = F - slope * np.maximum(P - deadband, 0.0)
     fit = BlockedForceFit(
         deadband_Pa=deadband, slope_N_per_Pa=slope, pressure_Pa=P, tension_N=F, inlier=inlier,
@@ -165,13 +162,6 @@ def braid_angle_from_slope(slope_N_per_Pa: float, rest_diameter_m: float) -> flo
             "(is the resting diameter right?)"
         )
     return math.degrees(math.atan(math.sqrt(tan_sq)))
-
-
-def _hinge_slope(P: np.ndarray, F: np.ndarray, deadband: float) -> float:
-    """Least-squares slope a of F = a max(P - deadband, 0) (0 when no point is above the dead band)."""
-    h = np.maximum(P - deadband, 0.0)
-    hh = float(h @ h)
-    return float(h @ F) / hh if hh > 0 else 0.0
 
 
 def _hinge(P: np.ndarray, F: np.ndarray) -> tuple[float, float]:

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import linprog, lsq_linear, minimize, minimize_scalar
 
-from ..muscle import MIN_DEADBAND_PA, Muscle
+from ..muscle import Muscle
 from ..recordings import Recording
 from ..stress import LAW_NAMES, LAWS, StressLaw, StressLawError
 from .data import ComparisonPoints, Samples, comparison_points, pool
@@ -772,10 +772,7 @@ def finish_fit(
     problem: Problem, law: str, coefficients, deadband_Pa: float, objective: str, start: float,
     evaluations: int, method: str = "variable projection",
 ) -> LawFit:  # fmt: skip
-    """Score coefficients on all samples and package them as a :class:`LawFit`. A fitted dead band
-    below ``MIN_DEADBAND_PA`` is none a bench can tell from 0, and is 0 (a muscle file refuses
-    1 .. 100 Pa as a kPa value written as Pa)."""
-    deadband_Pa = 0.0 if deadband_Pa < MIN_DEADBAND_PA else deadband_Pa
+    """Score coefficients on all samples and package them as a :class:`LawFit`."""
     stress = StressLaw(law, tuple(coefficients))
     try:
         stress.check_stable(*problem.strain_range)
