@@ -1297,3 +1297,43 @@ def test_a_file_output_ending_in_a_separator_is_refused(tmp_path, capsys, argv):
     name = argv[-1].rstrip("/")
     run_bad(argv, tmp_path, capsys, rf"{argv[-2]} {re.escape(argv[-1])}: ends in '/', which names a folder",
             rf"e\.g\. {re.escape(name)}\)")  # fmt: skip
+
+
+def _read_only(monkeypatch, ro: Path) -> None:
+    """Writes into ``ro`` fail as in a read-only folder (faked: the sandbox runs as root, where a
+    chmod stops nothing): creating a file there raises EACCES, as the kernel would."""
+    import errno
+    import tempfile
+
+    real_mkstemp, real_mkdtemp = tempfile.mkstemp, tempfile.mkdtemp
+
+    def refused(dir=None):
+        return dir is not None and Path(dir).resolve() == ro.resolve()
+
+    def mkstemp(*args, dir=None, **kwargs):
+        if refused(dir):
+            raise PermissionError(errno.EACCES, "Permission denied", str(ro))
+        return real_mkstemp(*args, dir=dir, **kwargs)
+
+    def mkdtemp(*args, dir=None, **kwargs):
+        if refused(dir):
+            raise PermissionError(errno.EACCES, "Permission denied", str(ro))
+        return real_mkdtemp(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    monkeypatch.setattr(tempfile, "mkdtemp", mkdtemp)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["muscle", "FAM1", "--json", "ro/out.json"], ["demo", "--out", "ro/demo"]],
+    ids=["json-file", "report-folder"],
+)
+def test_an_output_folder_that_refuses_writes_is_named_and_left_as_it_was(folder, capsys, monkeypatch, argv):
+    """A read-only output folder: one line naming the output and the system's reason, no
+    traceback, and the folder (an earlier output in it) left as it was."""
+    ro = folder / "ro"
+    ro.mkdir()
+    (ro / "out.json").write_text('{"an": "earlier output"}\n')
+    _read_only(monkeypatch, ro)
+    run_bad(argv, folder, capsys, r"ro", r"permission denied")
