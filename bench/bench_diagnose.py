@@ -135,7 +135,8 @@ def try_recommendation(
     e = experiment(rec["name"], d.ctx, stroke_speed(d.ctx, d.labels), rec.get("set_points"))
     extra = V.run_plan(case, e.t, e.L, e.P, min(case.sample_hz, 100.0), seed)
     recordings = [recording, *earlier, extra]
-    d2 = diagnose(recordings, nominal, next_experiment=False)
+    # its own recommendation only where a second round may need it (made for an ambiguous answer only)
+    d2 = diagnose(recordings, nominal, next_experiment=second_round)
     # the joined answer is judged on the joined data: the new test can make an effect show
     # that the first recording hid (or an effect that showed is still there)
     shows_joined, left_joined = (
@@ -155,11 +156,9 @@ def try_recommendation(
         **_verdict_inputs(d2),
     }  # fmt: skip
     out["resolved"] = bool(out["confident"] and out["correct"])
-    if second_round and d2.verdict.ambiguous:
-        d2 = diagnose(recordings, nominal)  # the same answer, now with its own recommendation
-        if d2.next_experiment and d2.next_experiment.get("recommended"):
-            second = try_recommendation(case, recording, nominal, d2, seed, earlier=recordings[1:])
-            out["second"] = {k: second[k] for k in SECOND_KEYS}
+    if second_round and d2.verdict.ambiguous and d2.next_experiment and d2.next_experiment.get("recommended"):
+        second = try_recommendation(case, recording, nominal, d2, seed, earlier=recordings[1:])
+        out["second"] = {k: second[k] for k in SECOND_KEYS}
     return out
 
 
@@ -282,8 +281,6 @@ def summarise(rows: list[dict]) -> dict:
             # below, the report says it is not expected to), and how many of them it resolved
             "next_expected_to_decide": len(expected),
             "next_resolved_expected": _frac(r["next"]["resolved"] for r in expected),
-            # beside it (not the goal's figure): the pair told apart and the answer right, at any
-            # probability (rows from before the field was recorded give None)
             # beside it: resolved by the recommended experiment, or by a second one where the
             # joined answer was still ambiguous (as a lab would go on); rows from before the second
             # round was run count their first round only
@@ -291,6 +288,8 @@ def summarise(rows: list[dict]) -> dict:
                 r["next"]["resolved"] or (r["next"].get("second") or {}).get("resolved", False) for r in amb
             ),
             "next_second_tried": sum(bool(r["next"].get("second")) for r in amb),
+            # beside it (not the goal's figure): the pair told apart and the answer right, at any
+            # probability (rows from before the field was recorded give None)
             "next_separated_right": _frac(
                 r["next"]["correct"] and not r["next"]["ambiguous_after"] for r in amb
             ) if all("ambiguous_after" in r["next"] for r in amb) else None,

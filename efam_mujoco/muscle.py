@@ -89,6 +89,14 @@ def deadband_problem(deadband_Pa: float) -> str:
     return ""
 
 
+def written_deadband_Pa(deadband_Pa: float) -> float:
+    """The dead band as a muscle file or the plugin's config writes it: a fitted one (calibrate's
+    and diagnose's fits are bounded at 0 only) in [ZERO_DEADBAND_PA, MIN_DEADBAND_PA), under what
+    a bench tells from none, is written as none, since every reader refuses that band as a kPa
+    value typed as Pa; any other value as it is."""
+    return 0.0 if ZERO_DEADBAND_PA <= deadband_Pa < MIN_DEADBAND_PA else deadband_Pa
+
+
 def _numbers(value, label: str, unit: str) -> np.ndarray:
     """``value`` as an array of floats (:func:`units.as_floats`); a ValueError saying ``label``
     must be numbers in ``unit`` for None, text, or anything else numpy cannot read as numbers."""

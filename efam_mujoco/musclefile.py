@@ -40,11 +40,11 @@ from .muscle import (
     MIN_DEADBAND_PA,
     NEUTRAL_BRAID_ANGLE_DEG,
     SIZE_RANGE_M,
-    ZERO_DEADBAND_PA,
     Geometry,
     Muscle,
     MuscleError,
     deadband_problem,
+    written_deadband_Pa,
 )
 from .stress import E1_PLAUSIBLE_PA, EXPONENT_E4_MAX, LAW_NAMES, StressLaw, StressLawError
 from .units import (
@@ -52,10 +52,12 @@ from .units import (
     PRESSURE,
     REQUIRED,
     UnitError,
+    is_odd_space,
     json_shown,
     read_quantity,
     split_unit,
     unit_that_fits,
+    was_it_in,
 )
 
 FORMAT = "efam_mujoco.muscle/1"
@@ -228,7 +230,7 @@ def _stray_message(text: str, label: str) -> str | None:
     line, column = text.count("\n", 0, i) + 1, i - (text.rfind("\n", 0, i) + 1) + 1
     name = unicodedata.name(c, "unnamed").lower()
     after = f" after key '{key}'" if key else ""
-    if c.isspace() or unicodedata.category(c) in ("Zs", "Cf"):
+    if is_odd_space(c):
         why = "JSON's only spaces are the ASCII space, tab and line break, and a number holds none"
     else:
         why = "JSON's quotes, brackets and digits are ASCII (a typographic quote?)"
@@ -384,8 +386,7 @@ def _plausible(value: float, block: dict, base: str, quantity: str, where: str) 
     unit = split_unit(key)[1] or ""
     hint = ""
     if quantity in ("length", "diameter", "thickness"):  # mm, cm, m or in: the one that fits
-        fits = unit_that_fits(value, math.sqrt(lo * hi), key, LENGTH, within=(lo, hi))
-        hint = f"; was it in {split_unit(fits)[1]} (write '{fits}')?" if fits else ""
+        hint = was_it_in(unit_that_fits(value, math.sqrt(lo * hi), key, LENGTH, within=(lo, hi)))
     elif value > hi and lo < value / 1000 <= hi:
         smaller = {"m": "mm", "Pa": "", "kPa": "Pa", "MPa": "kPa", "m3": "L"}.get(unit, "")
         if quantity == "volume":
@@ -560,8 +561,9 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
             )
         if deadband_problem(deadband):  # a kPa value written as Pa (33.62 for 33.62 kPa)
             key = next((k for k in doc if split_unit(k)[0] == "deadband"), "deadband_Pa")
-            fits = unit_that_fits(deadband, 34e3, key, PRESSURE, within=(MIN_DEADBAND_PA, MAX_DEADBAND_PA))
-            hint = f"; was it in {split_unit(fits)[1]} (write '{fits}')?" if fits else ""
+            hint = was_it_in(
+                unit_that_fits(deadband, 34e3, key, PRESSURE, within=(MIN_DEADBAND_PA, MAX_DEADBAND_PA))
+            )
             raise MuscleFileError(
                 f"{label}: key '{key}' = {doc.get(key)!r} is a dead band of {deadband:g} Pa, which cannot be "
                 f"physical: expected 0 (none) or {MIN_DEADBAND_PA:g} Pa .. {MAX_DEADBAND_PA / 1e3:g} kPa (the "
@@ -814,11 +816,7 @@ def muscle_document(muscle: Muscle, laws: dict[str, StressLaw] | None = None, **
             "theta_rest_deg": muscle.theta_rest_deg,
             "bladder_volume_m3": muscle.bladder_volume_m3,
         },
-        # a fitted dead band (calibrate's and diagnose's fits are bounded at 0 only) under what a
-        # bench tells from none is written as none: the reader refuses 1 .. 100 Pa as kPa typed as Pa
-        "deadband_kPa": 0.0
-        if ZERO_DEADBAND_PA <= muscle.deadband_Pa < MIN_DEADBAND_PA
-        else muscle.deadband_Pa / 1e3,
+        "deadband_kPa": written_deadband_Pa(muscle.deadband_Pa) / 1e3,
         "tension_only": muscle.tension_only,
         "lock_stiffness_N_per_m": muscle.lock_stiffness_N_per_m,
         "stress": {"default": muscle.stress.name, "laws": {k: v.to_dict() for k, v in laws.items()}},

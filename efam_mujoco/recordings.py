@@ -63,7 +63,18 @@ import numpy as np
 
 from .files import write_text_atomic
 from .muscle import SIZE_RANGE_M
-from .units import LENGTH, PRESSURE, QUANTITIES, TIME, UnitError, factor, split_unit, unit_that_fits, visible
+from .units import (
+    LENGTH,
+    PRESSURE,
+    QUANTITIES,
+    TIME,
+    UnitError,
+    factor,
+    is_odd_space,
+    split_unit,
+    unit_that_fits,
+    visible,
+)
 
 
 @dataclass
@@ -439,10 +450,9 @@ def decimal_cell(text: str, scale: float = 1.0) -> tuple[float | None, str]:
         hint = " (a decimal comma? write decimal points)" if _DECIMAL_COMMA.match(text) else ""
         odd = next((c for c in text if not c.isascii()), "")
         if odd:  # float() strips a no-break space round a number: name it instead
-            kind = "space" if odd.isspace() or unicodedata.category(odd) in ("Zs", "Cf") else "character"
             hint = (
                 f" (it holds U+{ord(odd):04X}, {unicodedata.name(odd, 'unnamed').lower()}: a number is plain "
-                f"ASCII digits{', with no spaces inside' if kind == 'space' else ''})"
+                f"ASCII digits{', with no spaces inside' if is_odd_space(odd) else ''})"
             )
         return None, f"not a number: {_shown(text)!r}{hint}"
     if not math.isfinite(value):

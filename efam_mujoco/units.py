@@ -72,6 +72,18 @@ def unit_that_fits(value_si: float, target_si: float, column: str, table: dict, 
     return f"{base}_{best}"
 
 
+def was_it_in(header: str) -> str:
+    """The hint a refusal adds for :func:`unit_that_fits`'s header (``'; was it in mm (write
+    'length_mm')?'``), '' for none."""
+    return f"; was it in {split_unit(header)[1]} (write '{header}')?" if header else ""
+
+
+def is_odd_space(character: str) -> bool:
+    """Whether a character the readers met outside ASCII is a space (a no-break, thin or
+    zero-width one): no writer of CSV or JSON puts one round or inside a number."""
+    return character.isspace() or unicodedata.category(character) in ("Zs", "Cf")
+
+
 REQUIRED = object()
 
 

@@ -26,7 +26,7 @@ import sys
 import threading
 import warnings
 
-from ..muscle import MAX_PRESSURE_LAG_S, MIN_DEADBAND_PA, ZERO_DEADBAND_PA, Muscle, deadband_problem
+from ..muscle import MAX_PRESSURE_LAG_S, Muscle, deadband_problem, written_deadband_Pa
 from ..stress import LAWS
 
 PLUGIN_NAME = "efam.muscle"
@@ -239,11 +239,7 @@ def plugin_config(
         raise ValueError(f"segments must be a whole number >= 1, got {segments!r}")
     if arc_geometry and segments < 2:
         raise ValueError("arc_geometry needs segmented muscles (segments > 1)")
-    deadband = muscle.deadband_Pa
-    if ZERO_DEADBAND_PA <= deadband < MIN_DEADBAND_PA:
-        # a fitted dead band (diagnose's re-fit is bounded at 0 only) under what a bench tells from
-        # none: written as none, since the plugin refuses 1 .. 100 Pa as a kPa value typed as Pa
-        deadband = 0.0
+    deadband = written_deadband_Pa(muscle.deadband_Pa)
     if problem := deadband_problem(deadband):  # the plugin would refuse it (efam_muscle.c)
         raise ValueError(f"config key 'deadband_Pa' = {deadband:.10g} is invalid: {problem}")
     config = {

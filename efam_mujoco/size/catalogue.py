@@ -21,7 +21,16 @@ from ..musclefile import (
     parse_json_text,
     read_small_file,
 )
-from ..units import LENGTH, UnitError, is_control, json_shown, read_quantity, split_unit, unit_that_fits
+from ..units import (
+    LENGTH,
+    UnitError,
+    is_control,
+    json_shown,
+    read_quantity,
+    split_unit,
+    unit_that_fits,
+    was_it_in,
+)
 
 FORMAT = "efam_mujoco.catalogue/1"
 
@@ -180,8 +189,7 @@ def _in_range(value: float, block: dict, base: str, where: str, kind: str, quant
         "; a fraction, not a percentage" if kind in ("fraction", "elongation_at_break") and value > 1 else ""
     )
     if quantity == "length" and lo > 0:  # the length unit under which the number would fit
-        fits = unit_that_fits(value, math.sqrt(lo * hi), key, LENGTH, within=(lo, hi))
-        hint = f"; was it in {split_unit(fits)[1]} (write '{fits}')?" if fits else hint
+        hint = was_it_in(unit_that_fits(value, math.sqrt(lo * hi), key, LENGTH, within=(lo, hi))) or hint
     raise CatalogueError(
         f"{where}: key '{key}' = {block.get(key)!r}{shown} is outside the physical range "
         f"{bracket}{lo * scale:g}, {hi * scale:g}]{u}{hint}"
