@@ -513,10 +513,11 @@ def drop_report(recording: Recording, limit: int = 5) -> str:
     )
 
 
-def comment_report(recording: Recording, limit: int = 5) -> str:
+def comment_report(recording, limit: int = 5) -> str:
     """One line telling the user how many '#' rows among the data rows (after the header) were
     skipped, and where ('' when none): a commented-out sample is not read. Comment lines before
-    the header (a preamble, the format's documented use) are only counted in ``meta``."""
+    the header (a preamble, the format's documented use) are only counted in ``meta``.
+    ``recording``: a muscle :class:`Recording` or an arm recording (both keep the lines in ``meta``)."""
     inside = recording.meta.get("comment_lines_in_data") or []
     if not len(inside):
         return ""

@@ -285,6 +285,32 @@ def test_diagnose_arm_refuses_a_recording_no_pressure_drives(lab, capsys):
     assert len(err.strip().splitlines()) <= 2, err  # the error line (and the time-step warning)
 
 
+def test_arm_comment_rows_among_the_data_are_counted_and_reported(lab):
+    """'#' rows of an arm recording were skipped without a word (the muscle recordings report
+    them): a commented-out sample is counted in meta and named by the diagnosis; a preamble
+    before the header is only counted."""
+    folder, _, spec, rec = lab
+    lines = write_csv(folder / "plain_for_comments.csv", rec).read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("time_"))
+    lines[head + 4] = "#" + lines[head + 4]  # a sample commented out
+    lines.insert(head + 9, "# valve swapped")  # a note among the data
+    commented = folder / "commented.csv"
+    commented.write_text("# arm 2, lab B\n" + "\n".join(lines) + "\n")
+    got = read_csv(commented, rec.muscles)
+    # file lines, 1-based, one preamble line before: the sample at index head + 4 and the note
+    first, second = head + 4 + 2, head + 9 + 2
+    preamble = 1 + sum(line.startswith("#") for line in lines[:head])  # ours and the writer's
+    assert got.meta["comment_rows"] == preamble + 2
+    assert got.meta["comment_lines_in_data"] == [first, second], got.meta["comment_lines_in_data"]
+    assert len(got) == len(rec) - 1
+    with pytest.warns(
+        ArmRecordingWarning, match=rf"commented\.csv: skipped 2 comment row\(s\).*line\(s\) {first}, {second}"
+    ):
+        diagnose_arm(spec, got, threads=1, effects=("payload",))
+    plain = read_csv(folder / "plain_for_comments.csv", rec.muscles)
+    assert plain.meta["comment_lines_in_data"] == []
+
+
 def test_diagnose_arm_shows_a_python_warning_as_one_line(lab, capsys):
     """The lab's 4 ms step draws the builder's TimestepWarning: one line in the error line's form,
     from ``efam diagnose-arm`` and from ``python -m efam_mujoco.armdiag.report`` (before: Python's

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..recordings import comment_report
 from ..units import PRESSURE, split_unit
 from . import design
 from .effects import LIBRARY, get, refit_knobs, refit_params
@@ -298,7 +299,11 @@ def diagnose_arm(
     clock = time.process_time()
     rec = recording
     limits = model_limits(spec)
-    for note in check_against_model(rec, limits["max_command_Pa"], limits["base_m"], limits["rest_reach_m"]):
+    # a commented-out sample is not replayed: said, as the muscle diagnosis says it
+    skipped = comment_report(rec)
+    for note in ([skipped] if skipped else []) + check_against_model(
+        rec, limits["max_command_Pa"], limits["base_m"], limits["rest_reach_m"]
+    ):
         warnings.warn(note, ArmRecordingWarning, stacklevel=2)
     check_replay_work(rec, limits["timestep_s"])
     replayer = Replayer(spec, rec.time_s, rec.command_Pa, threads=threads or default_threads())

@@ -2,7 +2,7 @@
 
 One file = one :class:`ArmRecording`::
 
-    # lines starting with '#' are comments
+    # lines starting with '#' are comments (those among the data rows are reported)
     time_s,p_s1m1_kPa,p_s1m2_kPa,p_s1m3_kPa,tip_x_m,tip_y_m,tip_z_m
     0.00,100,100,100,0.0012,-0.0004,0.2051
     ...
@@ -275,9 +275,10 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
     lines = array("q")
     n = 0
     pending = None  # the first data row's problem: said once a second row shows there is a recording
+    comments = array("q")  # the line of every '#' row, before the header and among the data
     try:
         with open_recording(path, label) as handle:
-            for line, last, row in csv_rows(handle, label):
+            for line, last, row in csv_rows(handle, label, comments):
                 if header is None:
                     refuse_other_separators(row, label, line, _ACCEPTED)
                     header, head_line = row, line
@@ -339,6 +340,10 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         "time_column": time_name,
         "command_columns": [header[col["command", m]].strip() for m in muscles],
         "tip_columns": [header[col["tip", a]].strip() for a in _TIP_AXES],
+        # '#' rows skipped, as the muscle recordings count them: all of them, and the lines of
+        # those after the header (a commented-out sample), which the diagnosis tells the user
+        "comment_rows": len(comments),
+        "comment_lines_in_data": [c for c in comments if c > head_line],
     }
     return ArmRecording(t, list(muscles), commands, tip, measured, extra, meta)
 
