@@ -548,24 +548,26 @@ def muscle_from_document(doc: dict, label: str, law: str | None = None) -> Muscl
                 "wide (is one of them in another unit?)"
             )
         deadband = _quantity(doc, "deadband", "pressure", label)
+        # the key as the file wrote it, for the messages below (``deadband_kPa`` when absent)
+        deadband_key = next((k for k in doc if split_unit(k)[0] == "deadband"), "deadband_kPa")
         if deadband < 0:
             raise MuscleFileError(f"{label}: deadband must not be negative, got {deadband:g} Pa")
         if deadband >= MAX_DEADBAND_PA:
-            key = next((k for k in doc if split_unit(k)[0] == "deadband"), "deadband_kPa")
-            smaller = {"kPa": "Pa", "MPa": "kPa"}.get(split_unit(key)[1] or "", "")
+            smaller = {"kPa": "Pa", "MPa": "kPa"}.get(split_unit(deadband_key)[1] or "", "")
             hint = f"; was it in {smaller} (write 'deadband_{smaller}')?" if smaller else ""
             raise MuscleFileError(
-                f"{label}: key '{key}' = {doc.get(key)!r} is a dead band of {deadband / 1e3:g} kPa, not below "
+                f"{label}: key '{deadband_key}' = {doc.get(deadband_key)!r} is a dead band of {deadband / 1e3:g} kPa, not below "
                 f"the {MAX_DEADBAND_PA / 1e3:g} kPa the package drives a muscle with at most (the rig's "
                 f"control range and the rated pressure): the muscle would never inflate{hint}"
             )
         if deadband_problem(deadband):  # a kPa value written as Pa (33.62 for 33.62 kPa)
-            key = next((k for k in doc if split_unit(k)[0] == "deadband"), "deadband_Pa")
             hint = was_it_in(
-                unit_that_fits(deadband, 34e3, key, PRESSURE, within=(MIN_DEADBAND_PA, MAX_DEADBAND_PA))
+                unit_that_fits(
+                    deadband, 34e3, deadband_key, PRESSURE, within=(MIN_DEADBAND_PA, MAX_DEADBAND_PA)
+                )
             )
             raise MuscleFileError(
-                f"{label}: key '{key}' = {doc.get(key)!r} is a dead band of {deadband:g} Pa, which cannot be "
+                f"{label}: key '{deadband_key}' = {doc.get(deadband_key)!r} is a dead band of {deadband:g} Pa, which cannot be "
                 f"physical: expected 0 (none) or {MIN_DEADBAND_PA:g} Pa .. {MAX_DEADBAND_PA / 1e3:g} kPa (the "
                 f"paper's are 34 kPa; below {MIN_DEADBAND_PA:g} Pa no pressure sensor tells one from none){hint}"
             )

@@ -109,8 +109,8 @@ FOCUSED = "holds_where_apart"
 #: against that, as model-robust discrimination designs spread their support points. On the
 #: benchmark runs 122000-126000 (retired seeds) one test resolved 17 of 32 ambiguous cases (53 %;
 #: 1 of 5 where it alone was expected to decide, z >= 4), one test repeated 4 of 7, a pair 68 of 86
-#: (79 %); where the side-by-side design differed in that alone, the pair never did worse (7 of 8
-#: cases against 5 of 8)
+#: (79 %); where one arm of the bench's side-by-side (runs 114200-126000) recommended a pair and
+#: the other one test, the pair resolved 7 of those 8 cases and the one test 5
 PAIR_ALWAYS = True
 
 
