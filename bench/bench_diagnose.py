@@ -195,25 +195,25 @@ def run_case(spec: tuple[int, str, str], try_next: bool = True) -> dict:
         "structure": d.structure, "samples": d.n_samples, "seconds": seconds,
         "tentative": v.tentative, "separation_z": v.separation_z, "outside_supported": v.outside_supported,
         "dd_raw_gain": d.correction.raw_gain,
-        "next": None, "next_single_allowed": None,
+        "next": None, "next_without_optimal": None,
     }  # fmt: skip
     # the next experiment is tried on every ambiguous case, whatever its family: the truth model
     # runs the recommended protocol with the concealed effect, and both recordings are diagnosed
     if try_next and v.ambiguous and d.next_experiment and d.next_experiment.get("recommended"):
         row["next"] = try_recommendation(case, recording, nominal, d, seed, second_round=True)
-        # side by side in the same run: what the recommendation would have been, and done, with
-        # one test allowed alone (design.PAIR_ALWAYS off: the rule before it; the design is made
-        # again, and the same test is not run twice)
-        design.PAIR_ALWAYS = False
+        # side by side in the same run: what the recommendation would have been, and done,
+        # without the optimal-design candidate (it can also change which test is paired or
+        # repeated, so the design is always made again; the same test is not run twice)
+        design.OFFER_OPTIMAL = False
         try:
             d_alt = diagnose([recording], nominal)
         finally:
-            design.PAIR_ALWAYS = True
+            design.OFFER_OPTIMAL = True
         alt = (d_alt.next_experiment or {}).get("recommended")
         if alt and (alt["name"], alt["duration_s"]) == (row["next"]["experiment"], row["next"]["duration_s"]):
-            row["next_single_allowed"] = row["next"]
+            row["next_without_optimal"] = row["next"]
         elif alt:
-            row["next_single_allowed"] = try_recommendation(case, recording, nominal, d_alt, seed)
+            row["next_without_optimal"] = try_recommendation(case, recording, nominal, d_alt, seed)
     return row
 
 
@@ -272,10 +272,10 @@ def summarise(rows: list[dict]) -> dict:
             "outside_wrong_name_p08": _frac(r["answer"] not in ("none", OUTSIDE) and r["probability"] >= 0.8 for r in outside),
             "outside_dd_improves": _frac(r["dd_heldout_after_N"] < 0.98 * r["dd_heldout_before_N"] for r in outside),
             "next_tried": len(amb), "next_resolved": _frac(r["next"]["resolved"] for r in amb),
-            # beside it: the same cases with one test allowed alone (the rule before
-            # design.PAIR_ALWAYS, run side by side; rows from before it was recorded give None)
-            "next_resolved_single_allowed": _frac(r["next_single_allowed"]["resolved"] for r in amb)
-            if all(r.get("next_single_allowed") for r in amb) else None,
+            # beside it: the same cases with the recommendation made without the optimal-design
+            # candidate (run side by side; rows from before it was recorded give None)
+            "next_resolved_without_optimal": _frac(r["next_without_optimal"]["resolved"] for r in amb)
+            if all(r.get("next_without_optimal") for r in amb) else None,
             "next_optimal_recommended": sum(FOCUSED in r["next"]["experiment"] for r in amb),
             # beside it: the cases whose recommendation the design expected to decide (z >= 1;
             # below, the report says it is not expected to), and how many of them it resolved
@@ -307,7 +307,7 @@ def summarise(rows: list[dict]) -> dict:
 def print_summary(s: dict) -> None:
     keys = ("n", "top1_confident", "confident", "false_alarm", "ambiguous_in_library", "tentative_in_library", "ece",
             "median_heldout_reduction", "median_reduction_bound", "outside_wrong_name_p08", "outside_dd_improves", "next_tried", "next_resolved",
-            "next_resolved_single_allowed", "next_resolved_within_two")  # fmt: skip
+            "next_resolved_without_optimal", "next_resolved_within_two")  # fmt: skip
     print(f"\n{'family':12s}" + "".join(f"{k[:14]:>15s}" for k in keys))
     for fam, b in s["by_family"].items():
         cells = []
@@ -667,9 +667,9 @@ def _line(row: dict, k: int, n: int) -> None:
         nxt = f" next {row['next']['experiment']} -> {row['next']['answer']} ({'resolved' if row['next']['resolved'] else 'not resolved'})"
         if second := row["next"].get("second"):
             nxt += f", then {second['experiment']} -> {second['answer']} ({'resolved' if second['resolved'] else 'not resolved'})"
-        alt = row.get("next_single_allowed")
+        alt = row.get("next_without_optimal")
         if alt and alt is not row["next"]:  # the same test is stored as the same row
-            nxt += f"; one test allowed alone {alt['experiment']} -> {alt['answer']} ({'resolved' if alt['resolved'] else 'not resolved'})"
+            nxt += f"; without the optimal design {alt['experiment']} -> {alt['answer']} ({'resolved' if alt['resolved'] else 'not resolved'})"
     print(
         f"[{k:3d}/{n}] {mark} {flag} {row['family']:10s} {row['kind']:7s} {'+'.join(row['truth']) or 'none':32s} -> "
         f"{row['answer']:16s} p={row['probability']:.2f} held-out {row['heldout_rms_before_N']:.2f}->{row['heldout_rms_after_N']:.2f} N "

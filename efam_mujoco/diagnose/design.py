@@ -56,16 +56,12 @@ that). A braid stretch of a third of the noise against ``none`` was recommended 
 expected z 3.7 that left the joined data still split 51:49. Candidates
 reaching ``Z_DECIDE`` all decide; among them the largest unabsorbed difference per sample
 against the noise is recommended (robust to what the two fitted models leave out, and no test is
-preferred for its length alone). The best one is followed by whichever of the next three keeps
-the expected z highest (``"a then b"``; ``experiment`` builds it): one protocol is never
-recommended alone (``PAIR_ALWAYS``), even where it reaches ``Z_DECIDE``, for that z is the two
-fitted models' own, and what they leave out of the truth shows most in the one regime they were
-told apart in (on retired benchmark seeds one test resolved 53 % of the cases it was tried on, a
-pair 79 %; without ``PAIR_ALWAYS`` a pair is recommended only where one test is short of
-``Z_DECIDE`` and the pair raises its z by 10 %). A test still short of ``Z_DECIDE`` is repeated
-(``"a x3"``: the whole run three times over, at most ``MAX_REPEATS`` times and ``MAX_TEST_S`` in
-all) as few times as reach it, each repeat kept only while it raises the expected z by 10 % (it
-stops paying once the data already recorded dominate). The recommendation states the predicted
+preferred for its length alone). When none reaches it, the best one followed by whichever of the
+next three adds most (``"a then b"``; ``experiment`` builds it) is recommended if that raises
+the expected z by 10 %; and a test still short of ``Z_DECIDE`` is repeated (``"a x3"``: the
+whole run three times over, at most ``MAX_REPEATS`` times and ``MAX_TEST_S`` in all) as few
+times as reach it, each repeat kept only while it raises the expected z by 10 % (it stops
+paying once the data already recorded dominate). The recommendation states the predicted
 difference in newtons (raw, and what is left after the projection), its peak, the noise floor,
 the expected z and the test's duration.
 """
@@ -103,15 +99,9 @@ GRID_HOLD_S = 4.0
 FOCUS_S = 90.0
 #: the name of the optimal-design candidate (its set points travel with the recommendation)
 FOCUSED = "holds_where_apart"
-#: whether the recommendation is always two different tests run one after the other, never one
-#: alone (the benchmark turns it off to measure, side by side, what it adds). Why: the expected z
-#: is the two fitted models' own, and both leave part of the truth out; a second protocol hedges
-#: against that, as model-robust discrimination designs spread their support points. On the
-#: benchmark runs 122000-126000 (retired seeds) one test resolved 17 of 32 ambiguous cases (53 %;
-#: 1 of 5 where it alone was expected to decide, z >= 4), one test repeated 4 of 7, a pair 68 of 86
-#: (79 %); where one arm of the bench's side-by-side (runs 114200-126000) recommended a pair and
-#: the other one test, the pair resolved 7 of those 8 cases and the one test 5
-PAIR_ALWAYS = True
+#: whether the optimal-design candidate is offered (the benchmark turns it off to measure, side
+#: by side, what it adds)
+OFFER_OPTIMAL = True
 
 
 @dataclass
@@ -530,7 +520,7 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
 
     tests, scored = {}, []
     try:
-        optimal = focused(a, b, ctx, speed, way_columns)
+        optimal = focused(a, b, ctx, speed, way_columns) if OFFER_OPTIMAL else None
     except ValueError:
         optimal = None
     for e in candidates(ctx, speed) + ([optimal] if optimal is not None else []):
@@ -545,19 +535,12 @@ def recommend(models: dict[str, EffectModel], ctx: Context, speed: float, noise_
     scored.sort(key=lambda s: (-min(s["expected_z"], Z_DECIDE), -s["unabsorbed_rms_N"]))
     best = scored[0] if scored else None
     chosen = tests[best["name"]] if best else None
-    # never one protocol alone (``PAIR_ALWAYS``): the best followed by whichever of the next three
-    # keeps the expected z highest, even where that z is lower than the single test's (its z is
-    # the two fitted models' own, and what they leave out of the truth shows most in the one
-    # regime they were told apart in). Without it: paired only when one test is short of
-    # Z_DECIDE and the pair raises its z by 10 %
-    if best and len(scored) >= 2 and (PAIR_ALWAYS or best["expected_z"] < Z_DECIDE):
+    # one test not expected to decide: the best followed by whichever of the next three adds most
+    if best and best["expected_z"] < Z_DECIDE and len(scored) >= 2:
         pairs = [joined(chosen, tests[s["name"]]) for s in scored[1:4]]
         pair_scores = [score(e) for e in pairs]
         k = int(np.argmax([s["expected_z"] for s in pair_scores]))
-        z_pair = pair_scores[k]["expected_z"]
-        if _raises(z_pair, best["expected_z"]) or (
-            PAIR_ALWAYS and (z_pair > 0.0 or best["expected_z"] <= 0.0)
-        ):
+        if _raises(pair_scores[k]["expected_z"], best["expected_z"]):
             best, chosen = pair_scores[k], pairs[k]
     # still short: the same test again, as few times as reach Z_DECIDE (not when even
     # MAX_REPEATS runs, z growing as sqrt(repeats), could not reach z 1: a long test deciding nothing)
