@@ -413,10 +413,7 @@ def read_csv(
         "rest_length_m": rest,
         "dropped_rows": dropped,
         "lines": np.frombuffer(lines, dtype=np.int64).copy(),
-        # '#' rows skipped: how many in all, and the lines of those after the header (a
-        # commented-out sample, not a preamble), which read_recordings tells the user
-        "comment_rows": len(comments),
-        "comment_lines_in_data": [c for c in comments if c > header_line],
+        **comment_meta(comments, header_line),
     }
     return Recording(time_s, length, pressure, force, meta)
 
@@ -511,6 +508,13 @@ def drop_report(recording: Recording, limit: int = 5) -> str:
     return (
         f"{shown_path(recording.meta.get('source', 'recording'))}: dropped {total} bad row(s): {shown}{more}"
     )
+
+
+def comment_meta(comments, header_line: int) -> dict:
+    """The ``meta`` entries of the '#' rows a reader skipped (``comments``: their file lines;
+    ``header_line``: the header's): how many in all, and the lines of those after the header (a
+    commented-out sample, not a preamble), which :func:`comment_report` tells the user."""
+    return {"comment_rows": len(comments), "comment_lines_in_data": [c for c in comments if c > header_line]}
 
 
 def comment_report(recording, limit: int = 5) -> str:

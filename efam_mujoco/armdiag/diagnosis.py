@@ -299,11 +299,9 @@ def diagnose_arm(
     clock = time.process_time()
     rec = recording
     limits = model_limits(spec)
-    # a commented-out sample is not replayed: said, as the muscle diagnosis says it
-    skipped = comment_report(rec)
-    for note in ([skipped] if skipped else []) + check_against_model(
-        rec, limits["max_command_Pa"], limits["base_m"], limits["rest_reach_m"]
-    ):
+    if skipped := comment_report(rec):  # a commented-out sample is not replayed: said, as for a muscle
+        warnings.warn(skipped, ArmRecordingWarning, stacklevel=2)
+    for note in check_against_model(rec, limits["max_command_Pa"], limits["base_m"], limits["rest_reach_m"]):
         warnings.warn(note, ArmRecordingWarning, stacklevel=2)
     check_replay_work(rec, limits["timestep_s"])
     replayer = Replayer(spec, rec.time_s, rec.command_Pa, threads=threads or default_threads())

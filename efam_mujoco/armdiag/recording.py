@@ -52,6 +52,7 @@ from ..recordings import (
     MAX_INTERVAL_S,
     MIN_INTERVAL_S,
     RecordingError,
+    comment_meta,
     csv_rows,
     decimal_cell,
     open_recording,
@@ -340,10 +341,7 @@ def read_csv(path: str | os.PathLike, muscles: list[str]) -> ArmRecording:
         "time_column": time_name,
         "command_columns": [header[col["command", m]].strip() for m in muscles],
         "tip_columns": [header[col["tip", a]].strip() for a in _TIP_AXES],
-        # '#' rows skipped, as the muscle recordings count them: all of them, and the lines of
-        # those after the header (a commented-out sample), which the diagnosis tells the user
-        "comment_rows": len(comments),
-        "comment_lines_in_data": [c for c in comments if c > head_line],
+        **comment_meta(comments, head_line),  # the diagnosis tells the user of those among the data
     }
     return ArmRecording(t, list(muscles), commands, tip, measured, extra, meta)
 
